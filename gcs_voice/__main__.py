@@ -1,0 +1,5 @@
+import sys
+
+from gcs_voice.cli import main
+
+sys.exit(main())

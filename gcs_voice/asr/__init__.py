@@ -1,0 +1,1 @@
+"""Speech recognisers behind one small streaming interface (see ``base``); one module per engine."""

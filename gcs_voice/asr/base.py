@@ -1,0 +1,69 @@
+"""The recogniser interface every engine implements: 16 kHz mono int16 PCM in, hypotheses out.
+
+Shape borrowed from wyoming's ``Transcriber``/streaming session and Vosk's examples: a model is loaded
+once (``Recognizer``), each utterance gets a ``RecognizerStream`` that accepts PCM chunks and returns a
+``Recognition`` from ``finish()``. Recognitions keep every alternative with its score, because the
+matcher needs them to decide and, above all, to reject.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
+
+__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer"]
+
+#: Every engine takes 16 kHz, mono, signed 16-bit little-endian PCM.
+SAMPLE_RATE = 16_000
+
+
+@dataclass(frozen=True)
+class Hypothesis:
+    """One transcript candidate.
+
+    ``confidence`` is in [0, 1] when the engine gives a probability-like value (None otherwise);
+    ``score`` is the engine's own raw score (log-probability, acoustic score...) for diagnostics.
+    """
+
+    text: str
+    confidence: float | None = None
+    score: float | None = None
+
+
+@dataclass(frozen=True)
+class Recognition:
+    """What an engine heard in one utterance: alternatives best first (may be empty: nothing heard)."""
+
+    hypotheses: tuple[Hypothesis, ...]
+    engine: str
+    lang: str | None = None
+    audio_s: float = 0.0
+    #: Engine-specific evidence useful for rejection (e.g. Whisper's no_speech_prob), by name.
+    extra: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def best(self) -> Hypothesis | None:
+        return self.hypotheses[0] if self.hypotheses else None
+
+    @property
+    def text(self) -> str:
+        return self.hypotheses[0].text if self.hypotheses else ""
+
+
+@runtime_checkable
+class RecognizerStream(Protocol):
+    """Per-utterance state. Feed PCM with ``accept``; ``finish`` returns the result and ends the stream."""
+
+    def accept(self, pcm: bytes) -> None: ...
+
+    def finish(self) -> Recognition: ...
+
+
+@runtime_checkable
+class Recognizer(Protocol):
+    """A loaded model for one or more languages."""
+
+    name: str
+    languages: tuple[str, ...]
+
+    def start_stream(self, lang: str | None = None) -> RecognizerStream: ...

@@ -1,0 +1,76 @@
+"""Dictionary loading and validation: bundled files are complete, bad files give one clear error."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from gcs_voice.dictionary import ACTIONS, MOTION_ACTIONS, available_languages, load_dictionary, load_language
+from gcs_voice.errors import DictionaryError
+from gcs_voice.text import normalize_text
+
+
+@pytest.mark.parametrize("lang", ["en", "es"])
+def test_bundled_dictionary_covers_every_class(lang: str) -> None:
+    d = load_language(lang)
+    assert d.language == lang
+    assert set(d.actions()) == set(ACTIONS)
+    for action in MOTION_ACTIONS:
+        assert len(d.phrases_for(action)) >= 3, action
+
+
+def test_paper_phrases_present() -> None:
+    en, es = load_language("en"), load_language("es")
+    assert en.by_key["increase altitude"].action == "up"
+    assert en.by_key["turn counterclockwise"].action == "turn_left"
+    # accents are folded for matching but kept as written for grammars
+    assert es.by_key["elevate"].action == "up"
+    assert es.by_key["atras"].text == "atrás"
+    assert "muévete" in es.vocabulary()
+
+
+def test_languages_listed() -> None:
+    assert {"en", "es"} <= set(available_languages())
+
+
+def test_normalisation() -> None:
+    assert normalize_text("  Go  RIGHT! ") == "go right"
+    assert normalize_text("¡Elévate!") == "elevate"
+    assert normalize_text("Elévate", fold=False) == "elévate"
+    assert normalize_text("counter-clockwise.") == "counter clockwise"
+
+
+def _write(tmp_path: Path, text: str) -> Path:
+    p = tmp_path / "xx.toml"
+    p.write_text(text, encoding="utf-8")
+    return p
+
+
+@pytest.mark.parametrize(
+    "body, message",
+    [
+        ("", "empty dictionary"),
+        ('language = "xx"\n[phrases]\nup = ["rise"]\ndown = ["Rise!"]\n', "phrase 'Rise!' is listed under 'up' and 'down'"),
+        ('language = "xx"\n[phrases]\nup = ["rise", "rise"]\n', "listed twice under 'up'"),
+        ('language = "xx"\n[phrases]\nsideways = ["slide"]\n', "unknown action class 'sideways'"),
+        ('language = "xx"\n[phrases]\nup = []\n', "non-empty list"),
+        ('language = "xx"\n[phrases]\nup = [3]\n', "phrase 3 is not a string"),
+        ('[phrases]\nup = ["rise"]\n', "missing 'language'"),
+        ('language = "xx"\nphrases = [\n', "invalid TOML"),
+        ('language = "xx"\n[phrases]\nup = ["?!"]\n', "empty after normalisation"),
+    ],
+)
+def test_malformed_dictionary_names_file_and_phrase(tmp_path: Path, body: str, message: str) -> None:
+    path = _write(tmp_path, body)
+    with pytest.raises(DictionaryError) as err:
+        load_dictionary(path)
+    assert message in str(err.value)
+    assert str(path) in str(err.value)
+
+
+def test_missing_file_and_unknown_language(tmp_path: Path) -> None:
+    with pytest.raises(DictionaryError, match="cannot read"):
+        load_dictionary(tmp_path / "nope.toml")
+    with pytest.raises(DictionaryError, match="no dictionary for language 'zz'"):
+        load_language("zz")
