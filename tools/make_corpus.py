@@ -71,7 +71,7 @@ def synthesise(text: str, voice: str, speed_wpm: int = 160, pitch: int = 50) -> 
         check=True, capture_output=True,
     )
     raw = subprocess.run(
-        ["sox", "-V1", "-t", "wav", "-", "-t", "raw", "-r", str(SAMPLE_RATE), "-e", "signed", "-b", "16",
+        ["sox", "-R", "-D", "-V1", "-t", "wav", "-", "-t", "raw", "-r", str(SAMPLE_RATE), "-e", "signed", "-b", "16",
          "-c", "1", "-"],
         input=speak.stdout, check=True, capture_output=True,
     )
