@@ -212,11 +212,7 @@ class CascadedController:
         errors = (vt[0] - s.vn_m_s, vt[1] - s.ve_m_s, vt[2] - s.vd_m_s)
         kp = (g.velocity_kp_horizontal_per_s, g.velocity_kp_horizontal_per_s, g.velocity_kp_vertical_per_s)
         ki = (g.velocity_ki_horizontal_per_s2, g.velocity_ki_horizontal_per_s2, g.velocity_ki_vertical_per_s2)
-        acc = [0.0, 0.0, 0.0]
-        for axis in range(3):
-            self._i_vel[axis] = _clamp(self._i_vel[axis] + ki[axis] * errors[axis] * dt_s,
-                                       g.velocity_integral_limit_m_s2)
-            acc[axis] = kp[axis] * errors[axis] + self._i_vel[axis]
+        acc = [kp[axis] * errors[axis] + self._i_vel[axis] for axis in range(3)]
 
         # acceleration -> roll/pitch targets and collective thrust
         lift_m_s2 = max(GRAVITY_M_S2 - acc[2], MIN_LIFT_FRACTION * GRAVITY_M_S2)
@@ -225,8 +221,13 @@ class CascadedController:
         a_right = -sy * acc[0] + cy * acc[1]
         a_max = lift_m_s2 * math.tan(math.radians(g.limits_tilt_deg))
         a_norm = math.hypot(a_fwd, a_right)
-        if a_norm > a_max:
+        tilt_saturated = a_norm > a_max
+        if tilt_saturated:
             a_fwd, a_right = a_fwd * a_max / a_norm, a_right * a_max / a_norm
+        # integrate only what the vehicle can act on (conditional anti-windup), and within a clamp
+        for axis in (2,) if tilt_saturated else (0, 1, 2):
+            self._i_vel[axis] = _clamp(self._i_vel[axis] + ki[axis] * errors[axis] * dt_s,
+                                       g.velocity_integral_limit_m_s2)
         pitch_t = -math.atan2(a_fwd, lift_m_s2)
         roll_t = math.atan2(a_right * math.cos(pitch_t), lift_m_s2)
         tilt_cos = max(math.cos(s.roll_rad) * math.cos(s.pitch_rad), MIN_TILT_COSINE)

@@ -8,11 +8,13 @@ The position reference point is the landing gear: ``down_m`` is 0 when the vehic
 from __future__ import annotations
 
 import contextlib
+import logging
 import math
 import os
 import sys
 from dataclasses import dataclass, field
 from pathlib import Path
+from types import ModuleType
 from typing import Iterator
 
 import numpy as np
@@ -33,6 +35,7 @@ HOVER_TRIM_ALT_M = 30.0       # trim search happens this high up, clear of the g
 HOVER_TRIM_S = 4.0
 HOVER_TRIM_AVERAGE_S = 1.0
 
+_log = logging.getLogger(__name__)
 _THROTTLE_PROPS = [f"fcs/throttle-cmd-norm[{i}]" for i in range(MOTOR_COUNT)]
 _CONTACT_PROPS = [f"external_reactions/contact_{axis}/magnitude" for axis in ("n", "e", "d")]
 _WOW_PROPS = [f"gear/unit[{i}]/WOW" for i in range(3)]
@@ -85,6 +88,37 @@ class FdmSample:
     lon_deg: float
 
 
+def _flush_c_stdio() -> None:
+    try:
+        import ctypes
+
+        ctypes.CDLL(None).fflush(None)
+    except (OSError, AttributeError):
+        pass
+
+
+def _quiet_logger(jsbsim: ModuleType) -> contextlib.AbstractContextManager[None]:
+    """JSBSim >= 1.3 prints through a per-thread Python logger: swap in one that keeps messages at debug."""
+    if not hasattr(jsbsim, "set_logger"):
+        return contextlib.nullcontext()
+
+    class _ToPythonLogging(jsbsim.FGLogger):
+        def message(self, message: str) -> None:
+            if message.strip():
+                _log.debug("jsbsim: %s", message.strip())
+
+    @contextlib.contextmanager
+    def swapped() -> Iterator[None]:
+        previous = jsbsim.get_logger()
+        jsbsim.set_logger(_ToPythonLogging())
+        try:
+            yield
+        finally:
+            jsbsim.set_logger(previous)
+
+    return swapped()
+
+
 @contextlib.contextmanager
 def _quiet_fds() -> Iterator[None]:
     """Silence C++ stdout/stderr (JSBSim's banner and load chatter) by redirecting fds 1 and 2."""
@@ -101,10 +135,17 @@ def _quiet_fds() -> Iterator[None]:
         os.dup2(devnull, 2)
         yield
     finally:
+        _flush_c_stdio()  # JSBSim's std::cout is buffered by C stdio: flush it into /dev/null, not later
         os.dup2(saved[0], 1)
         os.dup2(saved[1], 2)
         for fd in (*saved, devnull):
             os.close(fd)
+
+
+@contextlib.contextmanager
+def _quiet_both(jsbsim: ModuleType) -> Iterator[None]:
+    with _quiet_logger(jsbsim), _quiet_fds():
+        yield
 
 
 class QuadFdm:
@@ -118,7 +159,8 @@ class QuadFdm:
         self.home_lon_deg = home_lon_deg
         self.home_alt_m = home_alt_m
         jsbsim_root = Path(jsbsim.__file__).resolve().parent
-        with _quiet_fds():
+        self._quiet = lambda: _quiet_both(jsbsim)
+        with self._quiet():
             fdm = jsbsim.FGFDMExec(None)
             fdm.set_debug_level(0)
             ok = fdm.load_model_with_paths(
@@ -152,7 +194,7 @@ class QuadFdm:
         fdm["ic/psi-true-rad"] = wrap_pi(yaw_rad) % (2.0 * math.pi)
         self.set_throttles((0.0,) * MOTOR_COUNT)
         self.set_contact_force_ned_n(0.0, 0.0, 0.0)
-        with _quiet_fds():
+        with self._quiet():
             fdm.run_ic()
         if on_floor:
             for _ in range(round(GROUND_SETTLE_S / self.dt_s)):

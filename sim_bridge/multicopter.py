@@ -56,6 +56,7 @@ class Multicopter:
         self._armed = False
         self._events: list[Contact] = []
         self._touching: dict[str, float] = {}   # obstacle -> last time touched
+        self._pushing = False                   # a contact force is set in JSBSim
         self._sample = self._fdm.sample()
         self._controller.hold_here(self._sample)
 
@@ -113,7 +114,9 @@ class Multicopter:
     def _apply_contacts(self, s: FdmSample) -> None:
         center = (s.north_m, s.east_m, s.down_m - GEAR_HEIGHT_M)
         force, touching = self._contacts.force_ned_n(center, (s.vn_m_s, s.ve_m_s, s.vd_m_s))
-        self._fdm.set_contact_force_ned_n(*force)
+        if touching or self._pushing:
+            self._fdm.set_contact_force_ned_n(*force)
+            self._pushing = bool(touching)
         now = self.t_s
         for name in touching:
             last = self._touching.get(name)

@@ -177,12 +177,19 @@ class ContactModel:
                     vel_ned_m_s: tuple[float, float, float]) -> tuple[tuple[float, float, float], list[str]]:
         """Push-out force (N, NED) on a sphere at ``center_ned_m`` and the names of what it touches."""
         r = self.params.vehicle_radius_m
+        cn, ce, cd = center_ned_m
         total = [0.0, 0.0, 0.0]
         touching: list[str] = []
         for name, lo, hi in self._boxes:
-            closest = [min(max(c, l), h) for c, l, h in zip(center_ned_m, lo, hi)]
-            offset = [c - q for c, q in zip(center_ned_m, closest)]
-            distance = math.sqrt(sum(d * d for d in offset))
+            # broad phase: outside the box grown by r on every side means no contact (cheap, the usual case)
+            if (cn <= lo[0] - r or cn >= hi[0] + r or ce <= lo[1] - r or ce >= hi[1] + r
+                    or cd <= lo[2] - r or cd >= hi[2] + r):
+                continue
+            qn = lo[0] if cn < lo[0] else (hi[0] if cn > hi[0] else cn)
+            qe = lo[1] if ce < lo[1] else (hi[1] if ce > hi[1] else ce)
+            qd = lo[2] if cd < lo[2] else (hi[2] if cd > hi[2] else cd)
+            offset = (cn - qn, ce - qe, cd - qd)
+            distance = math.sqrt(offset[0] ** 2 + offset[1] ** 2 + offset[2] ** 2)
             if distance >= r:
                 continue
             if distance > 1e-9:
