@@ -19,7 +19,8 @@ from sim_bridge.world import Contact, ContactModel, Room, load_contact_params
 __all__ = ["Multicopter", "RigidBodyState", "ControlTarget", "Contact", "DEFAULT_HOME", "DEFAULT_PHYSICS_HZ"]
 
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)   # lat_deg, lon_deg, alt_m: PX4 SITL's default home
-DEFAULT_PHYSICS_HZ = 300.0
+DEFAULT_PHYSICS_HZ = 300.0                     # 200-400 Hz fly alike (docs/bench/sim.md); 300 keeps >= 60x
+MIN_PHYSICS_HZ, MAX_PHYSICS_HZ = 100.0, 2000.0
 ON_GROUND_MIN_GEAR_CONTACTS = 2                # of the three gear points
 ON_GROUND_MAX_CLIMB_M_S = 0.3                  # and not moving up faster than this
 
@@ -39,6 +40,8 @@ class Multicopter:
         self.room = room
         self.start_ned_m = tuple(float(x) for x in start_ned_m)
         self.start_yaw_rad = float(_first(start_yaw_rad, math.radians(room.start_yaw_deg) if room else None, 0.0))
+        if not (isinstance(physics_hz, (int, float)) and MIN_PHYSICS_HZ <= physics_hz <= MAX_PHYSICS_HZ):
+            raise ValueError(f"physics_hz must be {MIN_PHYSICS_HZ:g}..{MAX_PHYSICS_HZ:g}, not {physics_hz!r}")
         self.physics_hz = float(physics_hz)
         self._fdm = QuadFdm(self.physics_hz, self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
         self.hover_throttle = self._fdm.find_hover_throttle()
@@ -124,9 +127,13 @@ class Multicopter:
                 self._events.append(Contact(now, name, (s.north_m, s.east_m, s.down_m)))
             self._touching[name] = now
 
-    @staticmethod
-    def _on_ground(s: FdmSample) -> bool:
-        return s.gear_contacts >= ON_GROUND_MIN_GEAR_CONTACTS and s.vd_m_s > -ON_GROUND_MAX_CLIMB_M_S
+    def _on_ground(self, s: FdmSample) -> bool:
+        """Standing on the floor (gear), or resting on top of furniture (contact from below)."""
+        if s.vd_m_s <= -ON_GROUND_MAX_CLIMB_M_S:
+            return False
+        if s.gear_contacts >= ON_GROUND_MIN_GEAR_CONTACTS:
+            return True
+        return self._contacts is not None and self._contacts.supported and s.vd_m_s < ON_GROUND_MAX_CLIMB_M_S
 
     @property
     def state(self) -> RigidBodyState:

@@ -23,6 +23,7 @@ __all__ = ["RoomError", "Block", "Room", "Contact", "ContactParams", "ContactMod
 
 ROOMS_DIR = Path(__file__).resolve().parent / "rooms"
 CONTACT_PARAMS_PATH = Path(__file__).resolve().parent / "data" / "contact.toml"
+SUPPORT_NORMAL_UP = 0.7   # a contact whose normal points this much upward carries the vehicle (a table top)
 _WALL_NAMES = ("south wall", "north wall", "west wall", "east wall", "floor", "ceiling")  # per bounds face
 
 
@@ -157,6 +158,7 @@ class ContactModel:
 
     def __init__(self, room: Room, params: ContactParams) -> None:
         self.params = params
+        self.supported = False  # after force_ned_n: resting on top of a block (counts as on the ground)
         home = room.start_xy_m
         self._boxes: list[tuple[str, tuple[float, ...], tuple[float, ...]]] = []
         for block in room.blocks:
@@ -178,6 +180,7 @@ class ContactModel:
         """Push-out force (N, NED) on a sphere at ``center_ned_m`` and the names of what it touches."""
         r = self.params.vehicle_radius_m
         cn, ce, cd = center_ned_m
+        self.supported = False
         total = [0.0, 0.0, 0.0]
         touching: list[str] = []
         for name, lo, hi in self._boxes:
@@ -204,6 +207,7 @@ class ContactModel:
                 depth = r + gap
             self._push(total, normal, depth, vel_ned_m_s)
             touching.append(name)
+            self.supported = self.supported or normal[2] < -SUPPORT_NORMAL_UP
         for name, axis, plane, inward in self._walls:
             gap = (center_ned_m[axis] - plane) * inward  # distance from the wall into the room
             if gap >= r:

@@ -109,3 +109,25 @@ def test_furniture_stops_the_vehicle_and_reports_it() -> None:
     names = [e.obstacle_name for e in vehicle.pop_events()]
     assert names == ["shelf"]
     assert math.isfinite(vehicle.state.yaw_rad)
+
+
+@pytest.mark.slow
+def test_landing_on_a_table_counts_as_on_the_ground() -> None:
+    vehicle = take_off("living_room", down_m=-1.2)
+    room = vehicle.room
+    table = next(b for b in room.blocks if b.name == "coffee table")
+    over_n = (table.min_m[0] + table.max_m[0]) / 2 - room.start_xy_m[0]
+    over_e = (table.min_m[1] + table.max_m[1]) / 2 - room.start_xy_m[1]
+    vehicle.set_target(ControlTarget(pos_ned_m=(over_n, over_e, -1.2)))
+    fly(vehicle, 5.0)
+    assert not vehicle.state.on_ground
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.5)))
+    states = fly(vehicle, 4.0)
+    assert states[-1].on_ground
+    assert states[-1].pos_ned_m[2] < -table.max_m[2] + 0.2   # on the table top, not the floor
+    vehicle.set_armed(False)
+    resting = vehicle.state.pos_ned_m.copy()
+    states = fly(vehicle, 3.0)
+    assert all(s.on_ground for s in states)
+    assert np.abs(states[-1].pos_ned_m - resting).max() < 0.02
+    assert "coffee table" in [e.obstacle_name for e in vehicle.pop_events()]
