@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
+from gcs_voice.errors import LinkError
 from gcs_voice.link import ACCEPTED, REFUSED, Setpoint, VehicleLink
 from gcs_voice.link.setpoints import TYPE_MASK_VELOCITY_YAW
 from gcs_voice.settings import load_settings
@@ -82,6 +83,32 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
             link.close()
 
 
+def test_arducopter_mode_reset_after_arming_is_caught(tmp_path: Path) -> None:
+    """ArduCopter may drop GUIDED (end of init, RC mode switch): take-off sets it again before NAV_TAKEOFF."""
+    with ScriptedVehicle("ardupilot", mode_after_arm=0) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            result = link.takeoff(1.0)
+            assert result.ok, result
+        finally:
+            link.close()
+        commands = [(m.command, m.param2) for _, m in vehicle.messages("COMMAND_LONG") if m.command in (176, 400, 22)]
+        assert commands == [(176, 4.0), (400, 0.0), (176, 4.0), (22, 0.0)]
+
+
+def test_refusals_without_a_usable_vehicle(tmp_path: Path) -> None:
+    with ScriptedVehicle("ardupilot", mav_type=mavutil.mavlink.MAV_TYPE_FIXED_WING) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            result = link.takeoff(1.0)
+            assert result.status == REFUSED and "not a multicopter" in result.reason
+        finally:
+            link.close()
+        assert not [m for _, m in vehicle.messages("COMMAND_LONG")]
+    with pytest.raises(LinkError, match="cannot open"):
+        VehicleLink("udpin:256.0.0.1:14550").open()  # not an address: one line, no traceback
+
+
 def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
     """PX4: the first DO_SET_MODE ACK is always ACCEPTED; only the HEARTBEAT says OFFBOARD."""
     with ScriptedVehicle("px4") as vehicle:
@@ -129,6 +156,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
     with ScriptedVehicle("ardupilot", heading_deg=30.0) as vehicle:
         link = _link(vehicle, tmp_path)
         try:
+            assert link.request_telemetry().ok
             link.start_stream(lambda state: Setpoint(0.5, 0.0, 0.0, 30.0))
             time.sleep(0.5)
             assert link.state.link_ok
@@ -152,6 +180,8 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         assert (first.vx, first.vy, first.vz) == (0.0, 0.0, 0.0)
         assert first.yaw == pytest.approx(math.radians(30.0), abs=1e-6)
         assert after[-1].vx == pytest.approx(0.5 * math.cos(math.radians(30)), abs=1e-6)
+        intervals = [t for t, m in vehicle.messages("COMMAND_LONG") if m.command == 511]
+        assert len(intervals) == 8 and intervals[-1] > lost_at  # asked again after the link came back
 
 
 def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> None:

@@ -21,6 +21,11 @@ if TYPE_CHECKING:
 __all__ = ["FlightOperations"]
 
 _NAN = float("nan")
+#: HEARTBEAT.type values this bridge flies (its modes and setpoints are the copter ones)
+MULTICOPTER_TYPES = frozenset({
+    mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_TYPE_HEXAROTOR, mavlink.MAV_TYPE_OCTOROTOR, mavlink.MAV_TYPE_TRICOPTER,
+    mavlink.MAV_TYPE_COAXIAL, mavlink.MAV_TYPE_HELICOPTER, mavlink.MAV_TYPE_DODECAROTOR, mavlink.MAV_TYPE_DECAROTOR,
+})
 #: after a refusal, texts that explain it may still be on their way
 _REASON_GRACE_S = 0.25
 
@@ -71,6 +76,8 @@ class FlightOperations:
             return state, OperationResult(operation, TIMED_OUT, "no vehicle on the link")
         if state.profile is None:
             return state, OperationResult(operation, REFUSED, "not an ArduPilot or PX4 flight controller")
+        if state.mav_type not in MULTICOPTER_TYPES:
+            return state, OperationResult(operation, REFUSED, f"vehicle type {state.mav_type} is not a multicopter")
         return state, None
 
     # ---- modes ----------------------------------------------------------------------------------
@@ -172,6 +179,11 @@ class FlightOperations:
         step = self.arm()
         if not step.ok:
             return OperationResult(operation, step.status, str(step), step.texts)
+        # ArduCopter resets the mode when its initialisation ends (3 s after boot) or from the RC switch:
+        # check again, armed, before the take-off (GUIDED may be entered armed on the ground).
+        step = self.set_mode(profile.arm_mode)
+        if not step.ok:
+            return OperationResult(operation, step.status, str(step), step.texts)
         param7 = altitude_m
         if profile.takeoff_alt_is_amsl:
             home = self.state.home_amsl_m
@@ -233,6 +245,7 @@ class FlightOperations:
             if ack is None or not ack.accepted:
                 refused.append(str(message_id))
         self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),))
+        self._telemetry_requested = True
         if refused:
             self._send(self._conn.mav.request_data_stream_encode(
                 state.system_id, state.component_id, mavlink.MAV_DATA_STREAM_ALL, self.settings.data_stream_hz, 1))

@@ -56,6 +56,7 @@ class VehicleLink(FlightOperations):
         self.last_setpoint: Setpoint | None = None
         self.setpoints_sent = 0
         self.read_errors = 0
+        self._telemetry_requested = False
 
     # ---- lifetime -------------------------------------------------------------------------------
     def open(self) -> "VehicleLink":
@@ -109,6 +110,16 @@ class VehicleLink(FlightOperations):
             raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s")
         return state
 
+    def connect(self, timeout_s: float = 30.0) -> VehicleState:
+        """Open, wait for the vehicle and ask for the telemetry the bridge reads (one call for a CLI)."""
+        if self._conn is None:
+            self.open()
+        self.wait_vehicle(timeout_s)
+        result = self.request_telemetry()
+        if not result.ok:
+            self.on_event(str(result))
+        return self.state
+
     # ---- the reader / timer thread --------------------------------------------------------------
     def _loop(self) -> None:
         period_hb, period_sp = 1.0 / self.settings.heartbeat_hz, 1.0 / self.settings.setpoint_hz
@@ -161,6 +172,8 @@ class VehicleLink(FlightOperations):
             self.on_event(f"link lost: vehicle silent for {self.settings.link_lost_s:g} s")
         else:
             self.on_event("link back")
+            if self._telemetry_requested:  # a rebooted autopilot forgot our message intervals
+                threading.Thread(target=self.request_telemetry, name="re-request-telemetry", daemon=True).start()
         with self._changed:
             self._changed.notify_all()
 
