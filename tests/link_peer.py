@@ -138,7 +138,9 @@ class ScriptedVehicle:
                 self.custom_mode = int(msg.param2)
             self._heartbeat()
         elif cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            if msg.param1 == 0:
+            if msg.param1 == 0 and self.height_m > 0.2:  # autopilots refuse to disarm in flight (unless forced)
+                self._ack(cmd, mavlink.MAV_RESULT_FAILED)
+            elif msg.param1 == 0:
                 self.armed = False
                 self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
             elif self.arm_refusals > 0:

@@ -77,8 +77,12 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
             assert takeoff.param7 == pytest.approx(2.0)  # metres above home on ArduCopter
             time.sleep(0.5)
             assert link.streaming and vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
+            refused = link.disarm()
+            assert refused.status == REFUSED and "FAILED" in refused.reason
+            assert link.streaming  # a refused disarm must not stop the setpoints mid-air
             assert link.land().ok
             assert not link.streaming
+            assert link.wait_for(lambda s: s.armed is False, 3.0) is not None  # landed and disarmed by itself
         finally:
             link.close()
 

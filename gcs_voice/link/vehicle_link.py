@@ -205,9 +205,12 @@ class VehicleLink(FlightOperations):
         self.start_stream(self._hold_source())
 
     def _hold_source(self) -> SetpointSource:
+        """Stop at the heading target being streamed, or at the current heading when nothing streams."""
         state = self.state
-        yaw = (self.last_setpoint.yaw_deg if self.last_setpoint is not None
-               else state.heading_deg if state.heading_deg is not None else 0.0)
+        if self._source is not None and self.last_setpoint is not None:
+            yaw = self.last_setpoint.yaw_deg
+        else:
+            yaw = state.heading_deg if state.heading_deg is not None else 0.0
         return lambda _state: Setpoint.stop(yaw)
 
     def _stream_tick(self) -> None:
