@@ -60,7 +60,6 @@ class ControlGains:
     attitude_kp_roll_pitch_per_s: float
     attitude_kp_yaw_per_s: float
     rate_kp_roll_pitch_per_s: float
-    rate_kd_roll_pitch: float
     rate_kp_yaw_per_s: float
     rate_ki_yaw_per_s2: float
     mixer_arm_length_m: float

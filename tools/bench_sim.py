@@ -173,6 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     speeds = {rate: min((speed(rate) for _ in range(SPEED_REPEATS)), key=lambda m: m["cpu_s"])
               for rate in (float(r) for r in args.rates.split(","))}
     wall_trace, wall = wall_contact(hz)
+    hover_throttle = Multicopter(physics_hz=hz).hover_throttle
 
     ok = lambda good: "yes" if good else "**NO**"  # noqa: E731
     lines = [
@@ -181,6 +182,20 @@ def main(argv: list[str] | None = None) -> int:
         f"{platform.python_version()}; JSBSim airframe `sim_bridge/data/aircraft/gcs_quad`, gains "
         "`sim_bridge/data/control.toml`. All runs are lockstep (`Multicopter.step(0.02)` in a loop) from a "
         f"hover at {-HOVER_DOWN_M} m in `open_field`, physics at {hz:g} Hz. Speed is process CPU time.", "",
+        "## Model", "",
+        "- Dynamics: JSBSim 6-DoF, airframe `gcs_quad` = the `F450` shipped in the jsbsim wheel (1.4 kg, "
+        "same inertia, three-point gear, four DJI E305 motors with DJI 9450 propellers read from the wheel's "
+        "`engine/` folder) re-packaged without its rate-only FCS (which needs sensor systems that print "
+        "\"Failed to tie property\" pages), plus three NED external forces for contacts. Gravity, propeller "
+        "thrust and reaction torque, motor spin-up, body drag and ground contact all come from JSBSim.",
+        f"- Hover point: found by a trim search at start (a vertical PI loop flown 30 m up for 4 s): "
+        f"throttle {hover_throttle:.3f}. The mixer models thrust = k * throttle^2 with k fitted at that point; "
+        "the velocity integrators absorb the rest.",
+        "- Controller (ours, `sim_bridge/control.py`): velocity PI -> tilt and collective thrust -> attitude P "
+        "-> body-rate P (yaw PI) -> X mixer -> four ESC commands, every physics step.",
+        "- Contacts (`sim_bridge/world.py`): the vehicle is a 0.25 m sphere around the CG; a spring-damper "
+        "push-out force (3000 N/m, 130 N s/m, `data/contact.toml`) against each box, wall and the ceiling. "
+        "The floor is JSBSim's ground (gear contacts).", "",
         "## Velocity steps (0 -> 1 m/s)", "",
         "| axis | 90 % rise (s) | overshoot (%) | settles to +/-0.05 m/s (s) | at 4 s (m/s) | target met |",
         "|---|---|---|---|---|---|",
