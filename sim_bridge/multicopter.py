@@ -43,11 +43,12 @@ class Multicopter:
         if not (isinstance(physics_hz, (int, float)) and MIN_PHYSICS_HZ <= physics_hz <= MAX_PHYSICS_HZ):
             raise ValueError(f"physics_hz must be {MIN_PHYSICS_HZ:g}..{MAX_PHYSICS_HZ:g}, not {physics_hz!r}")
         self.physics_hz = float(physics_hz)
+        gains = load_gains(gains_path)              # data files first: a typo fails before JSBSim loads
+        self._contacts = ContactModel(room, load_contact_params()) if room else None
         self._fdm = QuadFdm(self.physics_hz, self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
         self.hover_throttle = self._fdm.find_hover_throttle()
-        self._controller = CascadedController(load_gains(gains_path), self._fdm.mass_kg,
-                                              self._fdm.inertia_kg_m2, self.hover_throttle)
-        self._contacts = ContactModel(room, load_contact_params()) if room else None
+        self._controller = CascadedController(gains, self._fdm.mass_kg, self._fdm.inertia_kg_m2,
+                                              self.hover_throttle)
         self.reset()
 
     # ---- lifecycle -------------------------------------------------------------------------

@@ -7,7 +7,7 @@ import math
 import numpy as np
 import pytest
 
-from sim_bridge.control import ControlTarget, load_gains, sanitize_target
+from sim_bridge.control import DEFAULT_GAINS_PATH, ControlTarget, load_gains, sanitize_target
 from sim_bridge.multicopter import Multicopter
 from sim_bridge.world import load_room
 
@@ -35,10 +35,26 @@ def hovering() -> Multicopter:
     return vehicle
 
 
-def test_loading_prints_nothing(capfd: pytest.CaptureFixture[str]) -> None:
-    Multicopter()
+def test_loading_and_flying_print_nothing(capfd: pytest.CaptureFixture[str]) -> None:
+    vehicle = Multicopter(load_room("living_room"))
+    vehicle.set_armed(True)
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, -2.5)))   # up into the ceiling
+    fly(vehicle, 3.0)
+    vehicle.reset()
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+def test_bad_gains_file_is_one_line_naming_file_and_key(tmp_path) -> None:
+    good = DEFAULT_GAINS_PATH.read_text(encoding="utf-8")
+    for broken, says in ((good.replace("tilt_deg = ", "tilt_degrees = "), "limits.tilt_deg"),
+                         (good.replace("kp_yaw_per_s = 3.0", 'kp_yaw_per_s = "fast"'), "attitude.kp_yaw_per_s"),
+                         (good + "\n[", "cannot read")):
+        path = tmp_path / "gains.toml"
+        path.write_text(broken, encoding="utf-8")
+        with pytest.raises(ValueError) as caught:
+            Multicopter(gains_path=path)
+        assert str(path) in str(caught.value) and says in str(caught.value)
 
 
 def test_hover_holds_altitude_within_5_cm(hovering: Multicopter) -> None:
