@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from sim_bridge.control import DEFAULT_GAINS_PATH, ControlTarget, load_gains, sanitize_target
+from sim_bridge.frames import geodetic_to_ned_m, ned_to_geodetic
 from sim_bridge.multicopter import Multicopter
 from sim_bridge.world import load_room
 
@@ -181,3 +182,15 @@ def test_reset_returns_to_start_disarmed(hovering: Multicopter) -> None:
     state = hovering.state
     assert state.t_s == 0.0 and not state.armed and state.on_ground
     assert np.abs(state.pos_ned_m).max() < 0.01
+
+
+def test_geodetic_position_agrees_with_ned(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(pos_ned_m=(3.0, -2.0, -2.5)))
+    fly(hovering, 8.0)
+    state = hovering.state
+    north_m, east_m = geodetic_to_ned_m(state.lat_deg, state.lon_deg, hovering.home_lat_deg, hovering.home_lon_deg)
+    assert np.allclose(state.pos_ned_m, (3.0, -2.0, -2.5), atol=0.05)
+    assert (north_m, east_m) == pytest.approx((state.pos_ned_m[0], state.pos_ned_m[1]), abs=1e-3)
+    assert state.alt_amsl_m == pytest.approx(hovering.home_alt_m + 2.5, abs=0.05)
+    assert ned_to_geodetic(north_m, east_m, hovering.home_lat_deg, hovering.home_lon_deg) == pytest.approx(
+        (state.lat_deg, state.lon_deg), abs=1e-9)

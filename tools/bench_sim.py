@@ -131,6 +131,41 @@ def wall_contact(physics_hz: float) -> tuple[Trace, dict[str, float]]:
                    "events": ", ".join(f"{e.obstacle_name} at {e.t_s:.2f} s" for e in events)}
 
 
+def plot_room(path: Path, room_name: str, path_ned: np.ndarray | None = None) -> None:
+    """Top view of a room: blocks, walls, the start spot and (optionally) a flown path."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.patches import Rectangle
+
+    room = load_room(room_name)
+    fig, ax = plt.subplots(figsize=(6.4, 5.6), dpi=100)
+    (x0, y0, _), (x1, y1, z1) = room.bounds_min_m, room.bounds_max_m
+    ax.add_patch(Rectangle((y0, x0), y1 - y0, x1 - x0, fill=False, lw=2, color="k"))
+    for block in room.blocks:
+        (bx0, by0, _), (bx1, by1, bz1) = block.min_m, block.max_m
+        ax.add_patch(Rectangle((by0, bx0), by1 - by0, bx1 - bx0, color="tab:brown", alpha=0.35))
+        ax.text((by0 + by1) / 2, (bx0 + bx1) / 2, f"{block.name}\n{bz1:.2f} m", ha="center", va="center", fontsize=7)
+    sx, sy = room.start_xy_m
+    ax.plot([sy], [sx], "o", color="tab:blue", label="start (home)")
+    ax.annotate("", xy=(sy + 0.5 * math.sin(math.radians(room.start_yaw_deg)),
+                        sx + 0.5 * math.cos(math.radians(room.start_yaw_deg))),
+                xytext=(sy, sx), arrowprops={"arrowstyle": "->", "color": "tab:blue"})
+    if path_ned is not None:
+        ax.plot(path_ned[:, 1] + sy, path_ned[:, 0] + sx, color="tab:red", lw=1, label="flown path")
+    ax.set_xlim(y0 - 0.2, y1 + 0.2)
+    ax.set_ylim(x0 - 0.2, x1 + 0.2)
+    ax.set_aspect("equal")
+    ax.set_xlabel("east (m)")
+    ax.set_ylabel("north (m)")
+    ax.set_title(f"{room.name}: top view, ceiling {z1:.1f} m")
+    ax.legend(loc="lower left", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def plot(path: Path, title: str, ylabel: str, traces: list[tuple[str, Trace]], target: float | None,
          band: float | None, target_label: str = "target") -> None:
     import matplotlib
@@ -196,6 +231,7 @@ def main(argv: list[str] | None = None) -> int:
         "- Contacts (`sim_bridge/world.py`): the vehicle is a 0.25 m sphere around the CG; a spring-damper "
         "push-out force (3000 N/m, 130 N s/m, `data/contact.toml`) against each box, wall and the ceiling. "
         "The floor is JSBSim's ground (gear contacts).", "",
+        "![living room](img/sim_room.png)", "",
         "## Velocity steps (0 -> 1 m/s)", "",
         "| axis | 90 % rise (s) | overshoot (%) | settles to +/-0.05 m/s (s) | at 4 s (m/s) | target met |",
         "|---|---|---|---|---|---|",
@@ -241,6 +277,7 @@ def main(argv: list[str] | None = None) -> int:
         plot(IMG / "sim_yaw_step.png", "Yaw step to +90 deg", "yaw (deg)", [("yaw", yaw_trace)], 90.0, 3.0)
         plot(IMG / "sim_wall_contact.png", "2 m/s north into a wall", "north (m)", [("north", wall_trace)],
              wall["surface_m"], None, "contact surface")
+        plot_room(IMG / "sim_room.png", "living_room")
         plot(IMG / "sim_hover.png", "Hover at 1.5 m", "height (m)", [("height", hover_trace)], 1.5, 0.05)
         DOC.parent.mkdir(parents=True, exist_ok=True)
         DOC.write_text(text, encoding="utf-8")
