@@ -194,3 +194,13 @@ def test_geodetic_position_agrees_with_ned(hovering: Multicopter) -> None:
     assert state.alt_amsl_m == pytest.approx(hovering.home_alt_m + 2.5, abs=0.05)
     assert ned_to_geodetic(north_m, east_m, hovering.home_lat_deg, hovering.home_lon_deg) == pytest.approx(
         (state.lat_deg, state.lon_deg), abs=1e-9)
+
+
+def test_yaw_turns_the_short_way_across_north_south(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=math.radians(170)))
+    fly(hovering, 4.0)
+    hovering.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=math.radians(-170)))
+    states = fly(hovering, 3.0)
+    yaws_deg = [math.degrees(s.yaw_rad) for s in states]
+    assert all(abs(y) > 150.0 for y in yaws_deg)        # never swung back through north
+    assert abs(yaws_deg[-1] + 170.0) < 3.0
