@@ -204,3 +204,17 @@ def test_yaw_turns_the_short_way_across_north_south(hovering: Multicopter) -> No
     yaws_deg = [math.degrees(s.yaw_rad) for s in states]
     assert all(abs(y) > 150.0 for y in yaws_deg)        # never swung back through north
     assert abs(yaws_deg[-1] + 170.0) < 3.0
+
+
+def test_position_hold_rejects_a_steady_push(hovering: Multicopter) -> None:
+    hold = np.array((0.0, 0.0, CRUISE_DOWN_M))
+    hovering.set_target(ControlTarget(pos_ned_m=tuple(hold)))
+    hovering.set_disturbance_force_ned_n((0.0, 1.0, 1.0))   # east and down, about 7 % of the weight each
+    pushed = fly(hovering, 6.0)
+    drift_m = max(np.linalg.norm(s.pos_ned_m - hold) for s in pushed)
+    assert 0.05 < drift_m < 0.3                               # it felt the push, and held on
+    assert abs(pushed[-1].pos_ned_m[2] - hold[2]) < 0.01       # height: the integrator took the push over
+    assert abs(pushed[-1].pos_ned_m[1]) < 0.7 * drift_m        # sideways: slowly (see docs/bench/sim.md)
+    hovering.set_disturbance_force_ned_n((math.nan, "x", math.inf))  # type: ignore[arg-type]  # = no push
+    fly(hovering, 10.0)
+    assert np.linalg.norm(hovering.state.pos_ned_m - hold) < 0.05
