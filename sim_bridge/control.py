@@ -4,8 +4,9 @@ Targets (``ControlTarget``) are NED with absolute yaw. Bad targets never reach J
 * a vector (velocity or position) with any NaN/inf component, the wrong length or a non-number is DROPPED;
 * velocities are CLAMPED to the limits (horizontal norm, vertical), positions to ``position_offset_m`` of home;
 * a non-finite yaw or yaw rate is DROPPED; yaw is wrapped to [-pi, pi), yaw rate clamped;
-* a target with no valid vector holds the position where the vehicle was when the target was set, and one
-  with no valid yaw/yaw rate holds the heading it had then. So garbage brakes the vehicle, never moves it.
+* a target with no valid vector holds the position where the vehicle was when the first such target came
+  (a stream of them keeps that point), and one with no valid yaw/yaw rate likewise holds the heading it had
+  then. So garbage brakes the vehicle (and returns it to where the garbage began), never sends it anywhere.
 Precedence: position over velocity, yaw over yaw rate.
 """
 
@@ -162,8 +163,10 @@ class CascadedController:
     def set_target(self, target: ControlTarget, sample: FdmSample) -> None:
         """Adopt a target (sanitised); hold-position and hold-heading references are taken from ``sample``."""
         clean = sanitize_target(target, self.gains)
-        if clean.pos_ned_m is None and clean.vel_ned_m_s is None:
-            self._hold_pos = (sample.north_m, sample.east_m, sample.down_m)
+        if clean.pos_ned_m is None and clean.vel_ned_m_s is None:  # hold: where it is now, or where it was
+            holding = self._target.pos_ned_m is None and self._target.vel_ned_m_s is None
+            if not holding:
+                self._hold_pos = (sample.north_m, sample.east_m, sample.down_m)
         if clean.yaw_rad is None and clean.yaw_rate_rad_s is None:
             keeping = self._target.yaw_rad is None and self._target.yaw_rate_rad_s is None
             if not keeping:

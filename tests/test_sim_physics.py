@@ -218,3 +218,16 @@ def test_position_hold_rejects_a_steady_push(hovering: Multicopter) -> None:
     hovering.set_disturbance_force_ned_n((math.nan, "x", math.inf))  # type: ignore[arg-type]  # = no push
     fly(hovering, 10.0)
     assert np.linalg.norm(hovering.state.pos_ned_m - hold) < 0.05
+
+
+def test_repeated_garbage_keeps_the_first_hold_point(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(vel_ned_m_s=(1.0, 0.0, 0.0)))
+    fly(hovering, 2.0)
+    first_garbage_at = hovering.state.pos_ned_m.copy()
+    stopped_past_m = 0.0
+    for _ in range(round(5.0 / STEP_S)):   # a stream of bad setpoints: hold where the first one came
+        hovering.set_target(ControlTarget(vel_ned_m_s=(math.nan, 0.0, 0.0)))
+        fly(hovering, STEP_S)
+        stopped_past_m = max(stopped_past_m, hovering.state.pos_ned_m[0] - first_garbage_at[0])
+    assert stopped_past_m > 0.15                                            # braking from 1 m/s takes room
+    assert np.linalg.norm(hovering.state.pos_ned_m - first_garbage_at) < 0.05  # and it came back
