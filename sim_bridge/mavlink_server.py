@@ -21,7 +21,7 @@ from sim_bridge.autopilot.base import Autopilot, CommandContext
 from sim_bridge.params import ParamStore
 from sim_bridge.protocols import ParamProtocol, mission_reply
 from sim_bridge.transport import Link, TcpClientLink, TcpServer, TlogWriter, UdpOutLink, wait_readable
-from sim_bridge.vehicle import Vehicle
+from sim_bridge.vehicle import Vehicle, VehicleEvent
 
 __all__ = ["SimServer", "ServerStats"]
 
@@ -280,7 +280,7 @@ class SimServer:
         self.poll()
         events = self.vehicle.step(self.dt_s)
         self.autopilot.update(events)
-        for text in self._physics_texts():
+        for text in self._physics_texts(events):
             self.text(mavlink.MAV_SEVERITY_INFO, text)
         if self.autopilot.booted and not self._home_sent:
             self._home_sent = True      # ArduCopter sends HOME_POSITION when home is set
@@ -300,9 +300,14 @@ class SimServer:
     def summary_text(self) -> str:
         return self.stats.summary(self.autopilot.rejected_setpoints, self.vehicle.clamped_setpoints)
 
-    def _physics_texts(self) -> list[str]:
-        pop = getattr(self.vehicle.multicopter, "pop_events", None)
-        return [str(getattr(event, "text", event)) for event in pop()] if pop is not None else []
+    def _physics_texts(self, events: list[VehicleEvent]) -> list[str]:
+        """SITL-style "SIM Hit ..." texts for contacts (and, as ArduPilot SITL does, for touchdown)."""
+        state = self.vehicle.state
+        speed = float(math.sqrt(sum(float(v) ** 2 for v in state.vel_ned_m_s)))
+        texts = [f"SIM Hit {contact.obstacle_name} at {speed:.2f} m/s" for contact in self.vehicle.multicopter.pop_events()]
+        if self.autopilot.name == "ardupilot" and VehicleEvent.TOUCHDOWN in events:
+            texts.append(f"SIM Hit ground at {self.vehicle.touchdown_speed_m_s:.2f} m/s")
+        return texts
 
     def run_for(self, sim_s: float) -> None:
         """Lockstep: advance ``sim_s`` of simulated time as fast as the CPU allows."""

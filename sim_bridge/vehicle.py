@@ -148,6 +148,8 @@ class Vehicle:
         self._touchdown_s: float | None = None
         self._airborne = not self.state.on_ground
         self._rtl_phase = "climb"
+        self._last_descent_m_s = 0.0
+        self.touchdown_speed_m_s = 0.0
 
     # ----------------------------------------------------------------- state
     @property
@@ -396,8 +398,11 @@ class Vehicle:
         events = []
         state = self.state
         on_ground = bool(state.on_ground)
+        if not on_ground:
+            self._last_descent_m_s = max(0.0, float(state.vel_ned_m_s[2]))
         if self._airborne and on_ground:
             self._airborne = False
+            self.touchdown_speed_m_s = self._last_descent_m_s
             if self.armed:
                 events.append(VehicleEvent.TOUCHDOWN)
                 self._touchdown_s = self.time_s

@@ -293,7 +293,7 @@ class PX4(Autopilot):
 
     def _offboard_lost(self) -> None:
         self.out.text(mavlink.MAV_SEVERITY_CRITICAL, "Failsafe activated\t")
-        intended = self.mode
+        self.failsafe_intended = self.mode
         action = int(self.params.get("COM_OBL_RC_ACT"))
         if action == OBL_HOLD:
             self._switch(HOLD, failsafe=True)
@@ -301,4 +301,3 @@ class PX4(Autopilot):
             self._switch(LAND, failsafe=True)
         else:
             self._start_rtl(failsafe=True)   # Position/Altitude/Manual need RC; without it PX4 falls to RTL
-        self.failsafe_intended = intended
