@@ -145,7 +145,7 @@ class PX4(Autopilot):
             vehicle.follow(vehicle.setpoint, from_ground=True)
         elif mode != TAKEOFF:
             vehicle.hold()
-        self.out.send_heartbeat_now()
+        # no extra HEARTBEAT: PX4 reports the new mode in its next 1 Hz beat
 
     def request_mode(self, main: int, sub: int) -> int:
         """Commander's verdict on a mode request (the second ACK)."""
@@ -222,7 +222,6 @@ class PX4(Autopilot):
         if self.failsafe_intended is not None:
             self.mode = self.failsafe_intended     # PX4 goes back to the mode the user had chosen
             self.failsafe_intended = None
-            self.out.send_heartbeat_now()
 
     def _takeoff(self, alt_amsl_param: float) -> int:
         vehicle = self.vehicle
@@ -285,7 +284,6 @@ class PX4(Autopilot):
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarmed by landing\t")
                 if self.failsafe_intended is not None:
                     self.mode, self.failsafe_intended = self.failsafe_intended, None
-                    self.out.send_heartbeat_now()
             elif event is VehicleEvent.DISARMED_IDLE:
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarmed by auto preflight disarming\t")
         if self.mode == OFFBOARD_MODE and vehicle.armed and not self.offboard_signal():
