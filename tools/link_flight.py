@@ -39,6 +39,7 @@ def main() -> int:
     mapper = ActionMapper(settings)
     rows: list[str] = []
     t_start = time.monotonic()
+    events_seen = 0
     with VehicleLink(args.connect, settings, tlog_path=args.tlog, on_event=lambda line: print("  ", line)) as link:
         state = link.connect(timeout_s=args.timeout)
         print(f"vehicle: {state.autopilot} sys {state.system_id}, mode {state.mode}, armed {state.armed}")
@@ -70,7 +71,9 @@ def main() -> int:
             height = f"{after.height_m:.2f} m" if after.height_m is not None else "?"
             heading = f"{after.heading_deg:.1f} deg" if after.heading_deg is not None else "?"
             target = f"{mapper.yaw_target_deg:.1f}" if mapper.yaw_target_deg is not None else "?"
-            notes = "; ".join(n for n in (result, mapper.limit_reason, *list(mapper.events)[-1:]) if n)
+            new_events = list(mapper.events)[events_seen:]
+            events_seen = len(mapper.events)
+            notes = "; ".join(n for n in (result, mapper.limit_reason, *new_events) if n)
             rows.append(f"| {action} | {time.monotonic() - t0:.1f} | height {height}, heading {heading} "
                         f"(target {target}), {moved}, mode {after.mode} | {notes} |")
         sent = link.setpoints_sent

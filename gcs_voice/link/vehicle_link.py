@@ -219,7 +219,13 @@ class VehicleLink(FlightOperations):
     def _stream_tick(self) -> None:
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
-        if source is None or state.system_id is None or not state.link_ok:
+        if source is None or state.system_id is None:
+            return
+        if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
+            try:
+                source(state)
+            except Exception:
+                pass
             return
         try:
             setpoint = source(state)
