@@ -161,7 +161,8 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         link = _link(vehicle, tmp_path)
         try:
             assert link.request_telemetry().ok
-            link.start_stream(lambda state: Setpoint(0.5, 0.0, 0.0, 30.0))
+            seen_lost = []
+            link.start_stream(lambda state: seen_lost.append(not state.link_ok) or Setpoint(0.5, 0.0, 0.0, 30.0))
             time.sleep(0.5)
             assert link.state.link_ok
             vehicle.sending = False
@@ -176,6 +177,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
             time.sleep(0.5)
         finally:
             link.close()
+        assert any(seen_lost), "the setpoint source was never told about the loss"
         setpoints = vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
         assert not [t for t, _ in setpoints if lost_at + 0.15 < t < lost_at + 1.0]
         after = [m for t, m in setpoints if t > lost_at + 1.0]

@@ -50,6 +50,7 @@ class VehicleLink(FlightOperations):
         self._source: SetpointSource | None = None
         self._stop_first = False
         self._link_was_ok = False
+        self._link_was_lost = False
         self._thread: threading.Thread | None = None
         self._running = False
         self._boot_s = time.monotonic()
@@ -168,8 +169,10 @@ class VehicleLink(FlightOperations):
             return
         self._link_was_ok = state.link_ok
         if not state.link_ok:
-            self._stop_first = True
+            self._stop_first = self._link_was_lost = True
             self.on_event(f"link lost: vehicle silent for {self.settings.link_lost_s:g} s")
+        elif not self._link_was_lost:
+            self.on_event(f"link up: {state.autopilot or 'unknown autopilot'} system {state.system_id}")
         else:
             self.on_event("link back")
             if self._telemetry_requested:  # a rebooted autopilot forgot our message intervals
@@ -216,7 +219,13 @@ class VehicleLink(FlightOperations):
     def _stream_tick(self) -> None:
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
-        if source is None or state.system_id is None or not state.link_ok:
+        if source is None or state.system_id is None:
+            return
+        if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
+            try:
+                source(state)
+            except Exception:
+                pass
             return
         try:
             setpoint = source(state)
