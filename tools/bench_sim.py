@@ -249,8 +249,9 @@ def main(argv: list[str] | None = None) -> int:
         f"- Hover point: found by a trim search at start (a vertical PI loop flown 30 m up for 4 s): "
         f"throttle {hover_throttle:.3f}. The mixer models thrust = k * throttle^2 with k fitted at that point; "
         "the velocity integrators absorb the rest.",
-        "- Controller (ours, `sim_bridge/control.py`): velocity PI -> tilt and collective thrust -> attitude P "
-        "-> body-rate P (yaw PI) -> X mixer -> four ESC commands, every physics step.",
+        "- Controller (ours, `sim_bridge/control.py`): position P (hold, takeoff) -> velocity target slewed at "
+        "4 m/s^2 -> velocity PI plus the slew's acceleration as feedforward -> tilt and collective thrust -> "
+        "attitude P -> body-rate P (yaw PI) -> X mixer -> four ESC commands, every physics step.",
         "- Contacts (`sim_bridge/world.py`): the vehicle is a 0.25 m sphere around the CG; a spring-damper "
         "push-out force (3000 N/m, 130 N s/m, `data/contact.toml`) against each box, wall and the ceiling. "
         "The floor is JSBSim's ground (gear contacts).", "",
