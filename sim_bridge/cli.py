@@ -159,7 +159,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         server.close()
     s = server.stats
     print(f"gcs-sim: stopped after {server.vehicle.time_s:.1f} s simulated; sent {s.sent}, received {s.received}; "
-          f"{server.summary_text()}{'; tlog ' + str(args.tlog) + f' ({server.tlog.records} records)' if args.tlog else ''}",
+          f"{server.summary_text()}{'; tlog ' + str(args.tlog) + f' ({server.tlog.records} records)' if args.tlog else ''}"
+          f"{f'; {s.handler_errors} handler errors, last {server.last_handler_error}' if s.handler_errors else ''}",
           flush=True)
     return 0
 

@@ -73,6 +73,7 @@ class SimServer:
         self._last_summary = ""
         self._next_summary_s = STATS_PERIOD_S
         self._home_sent = False
+        self.last_handler_error = ""
         self.autopilot: Autopilot = personality_class(autopilot)(vehicle, params, self, home, self.epoch_unix_s)
         self.param_protocol = ParamProtocol(params, self)
         self.schedule = telemetry.Schedule()
@@ -204,8 +205,9 @@ class SimServer:
             return
         try:
             handler(self, msg, link)
-        except Exception:
+        except Exception as exc:   # a bug, never fatal: counted and named in the exit line
             self.stats.handler_errors += 1
+            self.last_handler_error = f"{kind}: {exc!r}"
 
     def _on_command(self, msg: Any, link: Link) -> None:
         if msg.get_type() == "COMMAND_INT":

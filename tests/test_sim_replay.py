@@ -182,6 +182,7 @@ def at(timeline, kind: str, t_s: float):
 
 
 # ---------------------------------------------------------------------------- the committed fixture
+@pytest.mark.slow
 def test_fixture_parses_and_the_current_sim_still_flies_it_the_same() -> None:
     recorded = read_tlog(FIXTURE)
     assert len(recorded) > 500 and FIXTURE.stat().st_size < 60_000
