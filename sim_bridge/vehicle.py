@@ -154,7 +154,8 @@ class Vehicle:
         """Climb to ``alt_m`` above home after the spool-up; the caller checked armed and landed."""
         self._takeoff_alt_m = self._cap_altitude(alt_m)
         self._takeoff_started_s = self.time_s
-        self._hold = _Hold(point_ned_m=None, yaw_rad=self.state.yaw_rad)
+        self._yaw_target_rad = float(self.state.yaw_rad)
+        self._hold = _Hold(point_ned_m=None, yaw_rad=self._yaw_target_rad)
         self.behaviour = Behaviour.TAKEOFF
 
     def hold(self) -> None:
@@ -225,7 +226,7 @@ class Vehicle:
             target, done = self._takeoff_target(pos)
             if done:
                 events.append(VehicleEvent.TAKEOFF_DONE)
-                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._yaw_target_rad)
+                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._hold.yaw_rad)
                 self.behaviour = Behaviour.HOLD
         elif self.behaviour is Behaviour.VELOCITY:
             target = self._velocity_target(pos, dt_s)
