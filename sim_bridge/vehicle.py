@@ -27,8 +27,8 @@ LIFTOFF_HEIGHT_M = 0.1
 HOLD_CAPTURE_SPEED_M_S = 0.15
 #: Gain turning a per-axis position target into a velocity (used when position and velocity are mixed).
 POSITION_TO_VELOCITY_PER_S = 1.0
-#: Altitude targets stay this far below the room ceiling.
-CEILING_MARGIN_M = 0.4
+#: Altitude targets stay this far below ``ceiling_m`` (the highest the gear point can go without touching).
+CEILING_MARGIN_M = 0.2
 
 
 class Behaviour(enum.Enum):
@@ -87,8 +87,8 @@ class Vehicle:
     multicopter: Any
     limits: VehicleLimits = field(default_factory=VehicleLimits)
     fence: Fence = field(default_factory=Fence)
-    ceiling_m: float | None = None          # room height above the home floor, if known
-    room_box_ned_m: tuple[float, float, float, float] | None = None   # walls: north_min, north_max, east_min, east_max
+    ceiling_m: float | None = None          # highest gear altitude (m above home) before the vehicle touches the ceiling
+    room_box_ned_m: tuple[float, float, float, float] | None = None   # where the gear point fits: n_min, n_max, e_min, e_max
     time_s: float = 0.0
     behaviour: Behaviour = Behaviour.IDLE
     setpoint: Setpoint | None = None

@@ -103,7 +103,7 @@ def test_ground_setpoints_ardupilot_sits_px4_offboard_climbs(room) -> None:
 
 
 def test_rtl_returns_home_within_the_ceiling_and_lands(room) -> None:
-    vehicle = Vehicle(Multicopter(room), ceiling_m=2.6)
+    vehicle = Vehicle(Multicopter(room), ceiling_m=2.2)
     vehicle.limits.takeoff_delay_s = 0.5
     vehicle.arm()
     vehicle.takeoff(1.0)
@@ -113,7 +113,7 @@ def test_rtl_returns_home_within_the_ceiling_and_lands(room) -> None:
     vehicle.follow(Setpoint((0.0, 1.0, 0.0), (None, None, None), 0.0, None, False, received_s=vehicle.time_s))
     _run(vehicle, 1.5)
     vehicle.return_to_launch()
-    assert vehicle.rtl_alt_m == pytest.approx(2.2), "RTL_ALT 15 m capped 0.4 m under the 2.6 m ceiling"
+    assert vehicle.rtl_alt_m == pytest.approx(2.0), "RTL_ALT 15 m capped 0.2 m under the ceiling"
     events = _run(vehicle, 20.0)
     assert VehicleEvent.RTL_LANDING in events and not vehicle.armed
     assert math.hypot(*vehicle.state.pos_ned_m[:2]) < 0.3
