@@ -1,0 +1,170 @@
+"""Matchers on text: the paper's worked examples, rejection of out-of-domain speech, no stealing."""
+
+from __future__ import annotations
+
+import pytest
+
+from gcs_voice.asr.base import Hypothesis, Recognition
+from gcs_voice.dictionary import load_language
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.matcher import DEFAULT_MATCHER, MATCHERS, Matcher, get_matcher
+from gcs_voice.matcher.levenshtein import levenshtein_distance
+from gcs_voice.matcher.thresholds import matcher_thresholds
+
+EN = load_language("en")
+ES = load_language("es")
+
+
+def heard(*texts: str, engine: str = "text", lang: str | None = None, **extra: float) -> Recognition:
+    return Recognition(hypotheses=tuple(Hypothesis(t) for t in texts), engine=engine, lang=lang, extra=extra)
+
+
+def test_registry_is_lazy_and_complete() -> None:
+    assert {"exact", "levenshtein"} <= set(MATCHERS)
+    assert DEFAULT_MATCHER in MATCHERS
+    for name in MATCHERS:
+        m = get_matcher(name)
+        assert isinstance(m, Matcher)
+        assert m.name == name
+
+
+def test_unknown_matcher_and_option_are_one_line_errors() -> None:
+    with pytest.raises(GcsVoiceError, match="unknown matcher 'nope'"):
+        get_matcher("nope")
+    with pytest.raises(GcsVoiceError, match="no option 'tolerance'"):
+        get_matcher("levenshtein", tolerance=3)
+
+
+def test_paper_worked_examples() -> None:
+    assert levenshtein_distance("to the left", "go to the left") == 3
+    assert levenshtein_distance("go right", "go left") == 4
+
+
+@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize(
+    ("text", "action", "dictionary"),
+    [
+        ("Go right!", "go_right", EN),
+        ("go left please", "go_left", EN),
+        ("Turn counterclockwise.", "turn_left", EN),
+        ("¡Elévate!", "up", ES),
+        ("Gira a la izquierda", "turn_left", ES),
+        ("atras", "go_back", ES),
+    ],
+)
+def test_exact_phrases_match_in_every_matcher(name: str, text: str, action: str, dictionary) -> None:
+    d = get_matcher(name).decide(heard(text), [dictionary])
+    assert d.action == action, d.reason
+    assert d.lang == dictionary.language
+    assert d.score == pytest.approx(1.0)
+    assert d.matcher == name
+
+
+def test_levenshtein_tolerates_small_misrecognitions() -> None:
+    m = get_matcher("levenshtein")
+    assert m.decide(heard("to the left"), [EN]).action == "go_left"  # the paper's example
+    assert m.decide(heard("go rigt"), [EN]).action == "go_right"
+    assert m.decide(heard("turn rigth"), [EN]).action == "turn_right"
+    assert m.decide(heard("gira a la isquierda"), [ES]).action == "turn_left"
+    assert get_matcher("exact").decide(heard("to the left"), [EN]).action is None
+
+
+@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize(
+    "text",
+    ["I'm going home", "the right answer", "turn the page", "hello there", "what time is it",
+     "voy a casa", "la respuesta correcta", "buenos días a todos"],
+)
+def test_out_of_domain_is_rejected_with_a_reason(name: str, text: str) -> None:
+    d = get_matcher(name).decide(heard(text), [EN, ES])
+    assert d.action is None, f"{text!r} became {d.action} via {d.phrase!r}"
+    assert "is not a command" in d.reason or "ambiguous" in d.reason
+
+
+def test_reason_names_nearest_phrase_and_distance() -> None:
+    d = get_matcher("levenshtein").decide(heard("hello there"), [EN])
+    assert d.action is None
+    assert d.reason.startswith("'hello there' is not a command (nearest '")
+    assert "> 0.35" in d.reason
+
+
+def test_paper_mode_always_acts() -> None:
+    d = get_matcher("levenshtein", reject=0).decide(heard("hello there"), [EN])
+    assert d.action is not None
+
+
+@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+def test_nothing_heard(name: str) -> None:
+    m = get_matcher(name)
+    for rec in (heard(), heard(""), heard("  ...  ")):
+        d = m.decide(rec, [EN])
+        assert d.action is None and d.reason == "nothing heard"
+    d = m.decide(heard("please"), [EN])
+    assert d.action is None and "filler" in d.reason
+
+
+# Near-miss pairs across classes: the heard text must never become the *other* class.
+STEALING_PAIRS = [
+    ("go right", "go_left"), ("go left", "go_right"), ("turn right", "turn_left"),
+    ("turn left", "turn_right"), ("turn right", "go_right"), ("go right", "turn_right"),
+    ("go up", "down"), ("go down", "up"), ("go back", "go_forward"), ("go ahead", "go_back"),
+    ("move right", "go_left"), ("rotate left", "turn_right"), ("right", "go_left"), ("left", "go_right"),
+]
+STEALING_PAIRS_ES = [
+    ("derecha", "go_left"), ("izquierda", "go_right"), ("gira a la derecha", "turn_left"),
+    ("gira a la derecha", "go_right"), ("ve a la izquierda", "turn_left"), ("sube", "down"), ("baja", "up"),
+    ("adelante", "go_back"), ("atrás", "go_forward"), ("para", "go_forward"),
+]
+
+
+@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+def test_no_stealing_between_near_classes(name: str) -> None:
+    m = get_matcher(name)
+    for pairs, dictionary in ((STEALING_PAIRS, EN), (STEALING_PAIRS_ES, ES)):
+        for text, other in pairs:
+            for variant in (text, text[:-1], text + "s", text.replace("e", "i", 1)):
+                d = m.decide(heard(variant), [EN, ES])
+                assert d.action != other, f"{variant!r} stolen by {other} via {d.phrase!r}"
+            own = dictionary.by_key[text.replace("á", "a")].action
+            assert m.decide(heard(text), [dictionary]).action == own
+
+
+def test_auto_language_picks_the_language_that_matched() -> None:
+    m = get_matcher("levenshtein")
+    assert m.decide(heard("gira a la derecha"), [EN, ES]).lang == "es"
+    assert m.decide(heard("turn right"), [EN, ES]).lang == "en"
+
+
+def test_ambiguous_between_classes_is_rejected() -> None:
+    # exactly between "go right" and "go left" -> no action rather than a guess
+    d = get_matcher("levenshtein", max_distance=0.9, min_margin=0.05).decide(heard("go rleift"), [EN])
+    assert d.action is None or d.score > 0.7
+
+
+def test_nbest_alternative_used_when_enabled() -> None:
+    rec = heard("hello there", "go right")
+    assert get_matcher("levenshtein").decide(rec, [EN]).action is None
+    d = get_matcher("levenshtein", alternatives=2).decide(rec, [EN])
+    assert d.action == "go_right" and "alternative #2" in d.reason
+
+
+def test_thresholds_come_from_the_data_file(tmp_path) -> None:
+    assert matcher_thresholds("levenshtein", None)["max_distance"] > 0
+    custom = tmp_path / "t.toml"
+    custom.write_text(
+        "[levenshtein]\nmax_distance = 0.05\n[levenshtein.engine.whisper]\nmax_distance = 0.5\n"
+        "[evidence.whisper]\nmax_no_speech_prob = 0.6\n"
+    )
+    m = get_matcher("levenshtein", thresholds_path=custom)
+    assert m.thresholds("sphinx")["max_distance"] == 0.05
+    assert m.thresholds("whisper")["max_distance"] == 0.5
+    assert m.decide(heard("go rigt"), [EN]).action is None  # 0.125 > 0.05
+    assert m.decide(heard("go rigt", engine="whisper"), [EN]).action == "go_right"
+    d = m.decide(heard("go right", engine="whisper", no_speech_prob=0.9), [EN])
+    assert d.action is None and "no_speech_prob 0.90 > 0.60" in d.reason
+
+
+def test_low_engine_confidence_is_rejected() -> None:
+    rec = Recognition(hypotheses=(Hypothesis("go right", confidence=0.2),), engine="x")
+    assert get_matcher("levenshtein", min_confidence=0.5).decide(rec, [EN]).action is None
+    assert get_matcher("levenshtein").decide(rec, [EN]).action == "go_right"
