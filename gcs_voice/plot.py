@@ -42,9 +42,13 @@ class Box:
 
 @dataclass(frozen=True)
 class Room:
+    """A room in its own frame (x north, y east from a corner); ``start_*`` is where local NED (0, 0) is."""
+
     name: str
     bounds: Box | None
     boxes: tuple[Box, ...]
+    start_north_m: float = 0.0
+    start_east_m: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -90,7 +94,12 @@ def load_room(name_or_path: str) -> Room:
     if not isinstance(raw_boxes, list):
         raise PlotError(f"{path}: 'blocks' must be a list of boxes")
     boxes = tuple(_box(b, f"{path} block {i}", f"box {i}") for i, b in enumerate(raw_boxes))
-    return Room(str(data.get("name", path.stem)), bounds, boxes)
+    start = data.get("start", {}).get("pos_m", [0.0, 0.0]) if isinstance(data.get("start"), dict) else [0.0, 0.0]
+    try:
+        start_north_m, start_east_m = float(start[0]), float(start[1])
+    except (TypeError, ValueError, IndexError):
+        raise PlotError(f"{path}: 'start.pos_m' must be [north_m, east_m]") from None
+    return Room(str(data.get("name", path.stem)), bounds, boxes, start_north_m, start_east_m)
 
 
 def commands_from_session_log(path: str | Path) -> list[CommandMark]:
@@ -145,7 +154,9 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
     alt = fig.add_subplot(grid[0, 1])
     hdg = fig.add_subplot(grid[1, 1], sharex=alt)
 
-    # Top view: east to the right, north up, as on a map.
+    # Top view: east to the right, north up, as on a map; in room coordinates when a room is drawn
+    # (the vehicle's local NED origin is the room's start position).
+    off_n, off_e = (room.start_north_m, room.start_east_m) if room is not None else (0.0, 0.0)
     if room is not None:
         if room.bounds is not None:
             b = room.bounds
@@ -157,16 +168,20 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
             top.annotate(box.name, ((box.east_min_m + box.east_max_m) / 2, (box.north_min_m + box.north_max_m) / 2),
                          ha="center", va="center", fontsize=7, color="dimgray")
     if tr.t_s:
-        top.plot(tr.east_m, tr.north_m, "-", color="tab:blue", lw=1.5, label="track")
-        top.plot(tr.east_m[0], tr.north_m[0], "o", color="green", label="start")
-        top.plot(tr.east_m[-1], tr.north_m[-1], "s", color="red", label="end")
+        east = [e + off_e for e in tr.east_m]
+        north = [n + off_n for n in tr.north_m]
+        top.plot(east, north, "-", color="tab:blue", lw=1.5, label="track")
+        top.plot(east[0], north[0], "o", color="green", label="start")
+        top.plot(east[-1], north[-1], "s", color="red", label="end")
         for mark in marks:
             pos = flight.position_at(mark.t_s)
             if pos is not None:
-                top.plot(pos[1], pos[0], "^", color=ACTION_COLOURS.get(mark.action, "k"), ms=7)
-                top.annotate(mark.action, (pos[1], pos[0]), textcoords="offset points", xytext=(4, 4), fontsize=7)
-    top.set_xlabel("east (m)")
-    top.set_ylabel("north (m)")
+                xy = (pos[1] + off_e, pos[0] + off_n)
+                top.plot(*xy, "^", color=ACTION_COLOURS.get(mark.action, "k"), ms=7)
+                top.annotate(mark.action, xy, textcoords="offset points", xytext=(4, 4), fontsize=7)
+    frame = "room" if room is not None else "local"
+    top.set_xlabel(f"east (m, {frame})")
+    top.set_ylabel(f"north (m, {frame})")
     top.set_aspect("equal", adjustable="datalim")
     top.grid(alpha=0.3)
     top.legend(loc="best", fontsize=8)

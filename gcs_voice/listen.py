@@ -1,0 +1,149 @@
+"""The voice side of a session: utterances -> recogniser -> matcher -> requests for the bridge.
+
+Runs in its own thread. An utterance is either a recorded WAV from ``--say`` (fed whole, as if just
+spoken) or a segment of the microphone cut by ``gcs_voice.audio``. Every utterance leaves a ``heard``
+event, then either a ``rejected`` event (no action: nothing happens) or a request to the bridge.
+Any exception here is a crash of the voice side: it is reported and the session ends with the
+vehicle stopped (the bridge's ``finish`` leads to its ``shutdown``).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from gcs_voice.bridge import Bridge, Request
+from gcs_voice.decision import Decision
+from gcs_voice.events import EventBus
+
+__all__ = ["VoicePipeline", "ScriptStep", "read_utterance", "run_script", "run_microphone", "start_voice_thread"]
+
+CHUNK_BYTES = 3200  # 0.1 s of 16 kHz int16: what a microphone callback would deliver
+
+
+@dataclass(frozen=True)
+class ScriptStep:
+    """One recorded utterance of a script and how long (wall seconds) its action runs before the next."""
+
+    path: Path
+    after_s: float
+
+
+def read_utterance(path: str | Path) -> bytes:
+    """16 kHz mono int16 PCM of a WAV file (through gcs_voice.audio, which converts and validates)."""
+    from gcs_voice import audio
+
+    return audio.read_wav_pcm(path)
+
+
+class VoicePipeline:
+    """One recogniser, one matcher, the dictionaries; ``hear(pcm)`` -> Decision, with events."""
+
+    def __init__(self, recognizer: Any, matcher: Any, dictionaries: Sequence[Any], lang: str | None,
+                 bus: EventBus) -> None:
+        self.recognizer = recognizer
+        self.matcher = matcher
+        self.dictionaries = list(dictionaries)
+        self.lang = lang  # None = let the engine / matcher choose among the dictionaries (--lang auto)
+        self.bus = bus
+
+    def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None) -> Decision:
+        end_t = utterance_end_t if utterance_end_t is not None else time.time()
+        stream = self.recognizer.start_stream(self.lang)
+        for i in range(0, len(pcm), CHUNK_BYTES):
+            stream.accept(pcm[i:i + CHUNK_BYTES])
+        recognition = stream.finish()
+        heard_t = time.time()
+        alternatives = [h.text for h in recognition.hypotheses[:5]]
+        self.bus.emit("heard", f"heard {recognition.text!r} ({recognition.engine}"
+                      f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
+                      text=recognition.text, alternatives=alternatives, engine=recognition.engine,
+                      lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
+                      utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1))
+        decision = self.matcher.decide(recognition, self.dictionaries)
+        if not decision.accepted:
+            self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}",
+                          text=decision.text, phrase=decision.phrase, score=round(decision.score, 3),
+                          reason=decision.reason, matcher=decision.matcher, source=source,
+                          utterance_end_t=end_t, decided_t=time.time())
+        return decision
+
+    def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None) -> Request | None:
+        """Hear one utterance and hand an accepted action to the bridge (None when rejected)."""
+        end_t = utterance_end_t if utterance_end_t is not None else time.time()
+        decision = self.hear(pcm, source, end_t)
+        if not decision.accepted:
+            return None
+        return bridge.submit(Request(decision.action, "voice", decision, end_t, time.time()))
+
+
+def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptStep], wait_before_s: float = 0.0,
+               ready: threading.Event | None = None, ready_timeout_s: float = 120.0) -> None:
+    """Feed recorded utterances in order, each ``after_s`` apart, then end the session."""
+    if ready is not None and not ready.wait(ready_timeout_s):
+        bridge.bus.emit("error", f"the vehicle did not become ready within {ready_timeout_s:g} s; ending")
+        bridge.finish(1)
+        return
+    if _sleep_unless_finished(bridge, wait_before_s):
+        return
+    pcms = [(step, read_utterance(step.path)) for step in steps]  # read all first: bad files fail early
+    for step, pcm in pcms:
+        request = pipeline.submit(bridge, pcm, step.path.name)
+        if request is not None:
+            request.done.wait(10.0)
+        if _sleep_unless_finished(bridge, step.after_s):
+            return
+        if request is not None and request.action in ("take_off", "land"):
+            _wait_operation(bridge)
+    bridge.bus.emit("session", "script done: holding and ending", phase="script-done")
+    bridge.finish(0)
+
+
+def _wait_operation(bridge: Bridge, timeout_s: float = 60.0) -> None:
+    deadline = time.monotonic() + timeout_s
+    while bridge.busy and not bridge.finished and time.monotonic() < deadline:
+        time.sleep(0.05)
+
+
+def _sleep_unless_finished(bridge: Bridge, seconds: float) -> bool:
+    deadline = time.monotonic() + seconds
+    while time.monotonic() < deadline:
+        if bridge.finished:
+            return True
+        time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
+    return bridge.finished
+
+
+def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]]) -> None:
+    """Serve utterances from a live source (PCM, end time) until the bridge finishes."""
+    for pcm, end_t in utterances:
+        if bridge.finished:
+            break
+        pipeline.submit(bridge, pcm, "microphone", end_t)
+
+
+def start_voice_thread(bridge: Bridge, target: Callable[..., None], *args: Any) -> threading.Thread:
+    """Run the voice side; an exception in it ends the session (vehicle stopped) with exit code 1."""
+
+    def guarded() -> None:
+        try:
+            target(*args)
+        except BaseException as exc:  # noqa: BLE001 - any failure here must stop the vehicle
+            message = str(exc) or type(exc).__name__
+            bridge.bus.emit("error", f"voice side failed ({type(exc).__name__}: {message}); stopping the vehicle",
+                            error=type(exc).__name__)
+            bridge.finish(2 if _is_user_error(exc) else 1)
+
+    thread = threading.Thread(target=guarded, name="voice", daemon=True)
+    thread.start()
+    return thread
+
+
+def _is_user_error(exc: BaseException) -> bool:
+    from gcs_voice.errors import GcsVoiceError
+
+    return isinstance(exc, GcsVoiceError)
