@@ -45,7 +45,7 @@ class SessionLog:
     def __init__(self, path: str | Path) -> None:
         self.path = Path(path)
         try:
-            self._file: IO[str] | None = self.path.open("a", encoding="utf-8")
+            self._file: IO[str] | None = self.path.open("w", encoding="utf-8")
         except OSError as exc:
             raise SessionLogError(f"cannot write session log {self.path}: {exc.strerror or exc}") from None
         self._lock = threading.Lock()
