@@ -23,6 +23,7 @@ from gcs_voice.events import EventBus
 __all__ = ["VoicePipeline", "ScriptStep", "read_utterance", "run_script", "run_microphone", "start_voice_thread"]
 
 CHUNK_BYTES = 3200  # 0.1 s of 16 kHz int16: what a microphone callback would deliver
+BYTES_PER_S = 32_000
 
 
 @dataclass(frozen=True)
@@ -44,20 +45,36 @@ class VoicePipeline:
     """One recogniser, one matcher, the dictionaries; ``hear(pcm)`` -> Decision, with events."""
 
     def __init__(self, recognizer: Any, matcher: Any, dictionaries: Sequence[Any], lang: str | None,
-                 bus: EventBus) -> None:
+                 bus: EventBus, realtime: bool = True) -> None:
         self.recognizer = recognizer
+        #: feed recorded PCM at the pace it was spoken (as a microphone would), so streaming engines
+        #: work during the utterance and latency counts from its real end
+        self.realtime = realtime
+        self.last_end_t = 0.0
         self.matcher = matcher
         self.dictionaries = list(dictionaries)
         self.lang = lang  # None = let the engine / matcher choose among the dictionaries (--lang auto)
         self.bus = bus
 
-    def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None) -> Decision:
-        end_t = utterance_end_t if utterance_end_t is not None else time.time()
+    def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
+             recorded: bool = False) -> Decision:
+        """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set)."""
         stream = self.recognizer.start_stream(self.lang)
-        for i in range(0, len(pcm), CHUNK_BYTES):
+        started = time.monotonic()
+        for n, i in enumerate(range(0, len(pcm), CHUNK_BYTES)):
+            if recorded and self.realtime:
+                lag_s = started + n * CHUNK_BYTES / BYTES_PER_S - time.monotonic()
+                if lag_s > 0:
+                    time.sleep(lag_s)
             stream.accept(pcm[i:i + CHUNK_BYTES])
+        if recorded and self.realtime:
+            lag_s = started + len(pcm) / BYTES_PER_S - time.monotonic()
+            if lag_s > 0:
+                time.sleep(lag_s)
+        end_t = time.time() if recorded or utterance_end_t is None else utterance_end_t
         recognition = stream.finish()
         heard_t = time.time()
+        self.last_end_t = end_t
         alternatives = [h.text for h in recognition.hypotheses[:5]]
         self.bus.emit("heard", f"heard {recognition.text!r} ({recognition.engine}"
                       f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
@@ -72,13 +89,13 @@ class VoicePipeline:
                           utterance_end_t=end_t, decided_t=time.time())
         return decision
 
-    def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None) -> Request | None:
+    def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
+               recorded: bool = False) -> Request | None:
         """Hear one utterance and hand an accepted action to the bridge (None when rejected)."""
-        end_t = utterance_end_t if utterance_end_t is not None else time.time()
-        decision = self.hear(pcm, source, end_t)
+        decision = self.hear(pcm, source, utterance_end_t, recorded)
         if not decision.accepted:
             return None
-        return bridge.submit(Request(decision.action, "voice", decision, end_t, time.time()))
+        return bridge.submit(Request(decision.action, "voice", decision, self.last_end_t, time.time()))
 
 
 def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptStep], wait_before_s: float = 0.0,
@@ -92,7 +109,7 @@ def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptSt
         return
     pcms = [(step, read_utterance(step.path)) for step in steps]  # read all first: bad files fail early
     for step, pcm in pcms:
-        request = pipeline.submit(bridge, pcm, step.path.name)
+        request = pipeline.submit(bridge, pcm, step.path.name, recorded=True)
         if request is not None:
             request.done.wait(10.0)
         if _sleep_unless_finished(bridge, step.after_s):
