@@ -1,0 +1,76 @@
+"""ArduPilot vs PX4: mode tables, how to ask for velocity control, how take-off altitude is given.
+
+Mode numbers come from pymavlink's own tables (``mavutil.mode_mapping_acm``, ``mavutil.px4_map``,
+``mavutil.interpret_px4_mode``); never retype them. ArduCopter's 4 is GUIDED, PX4's main mode 4 is AUTO
+(MISSION): sending the wrong table's number is a real way to lose a vehicle.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from pymavlink import mavutil
+from pymavlink.dialects.v20 import common as mavlink
+
+__all__ = ["AutopilotProfile", "ARDUPILOT", "PX4", "profile_for"]
+
+
+@dataclass(frozen=True)
+class AutopilotProfile:
+    """What differs between autopilots, as data plus two small lookups."""
+
+    name: str
+    #: mode that flies our velocity setpoints
+    velocity_mode: str
+    #: mode name for "land"
+    land_mode: str
+    #: True: the velocity mode is refused unless setpoints already stream (PX4 OFFBOARD)
+    needs_prestream: bool
+    #: True: NAV_TAKEOFF param7 is AMSL (PX4); False: metres above home (ArduCopter)
+    takeoff_alt_is_amsl: bool
+    #: True: arm in the velocity mode, then NAV_TAKEOFF (ArduCopter GUIDED); False: arm in a hold mode
+    arm_in_velocity_mode: bool
+    #: mode to arm in when not in the velocity mode (PX4 Hold = AUTO.LOITER)
+    arm_mode: str
+    #: True: DO_SET_MODE is acknowledged twice and the first ACK is always ACCEPTED (PX4)
+    double_mode_ack: bool
+
+    def mode_name(self, base_mode: int, custom_mode: int) -> str:
+        if self.name == "PX4":
+            return mavutil.interpret_px4_mode(base_mode, custom_mode)
+        return mavutil.mode_mapping_acm.get(custom_mode, f"MODE({custom_mode})")
+
+    def mode_params(self, mode: str) -> tuple[float, float, float]:
+        """DO_SET_MODE param1..3 for ``mode`` (KeyError when the autopilot has no such mode)."""
+        custom_enabled = float(mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED)
+        if self.name == "PX4":
+            _base, main_mode, sub_mode = mavutil.px4_map[mode]
+            return custom_enabled, float(main_mode), float(sub_mode)
+        by_name = {name: number for number, name in mavutil.mode_mapping_acm.items()}
+        return custom_enabled, float(by_name[mode]), 0.0
+
+    def custom_mode(self, mode: str) -> int:
+        """The HEARTBEAT custom_mode that means ``mode``."""
+        _flag, main_mode, sub_mode = self.mode_params(mode)
+        if self.name == "PX4":
+            return int(sub_mode) << 24 | int(main_mode) << 16
+        return int(main_mode)
+
+
+ARDUPILOT = AutopilotProfile(
+    name="ArduPilot", velocity_mode="GUIDED", land_mode="LAND", needs_prestream=False,
+    takeoff_alt_is_amsl=False, arm_in_velocity_mode=True, arm_mode="GUIDED", double_mode_ack=False,
+)
+PX4 = AutopilotProfile(
+    name="PX4", velocity_mode="OFFBOARD", land_mode="LAND", needs_prestream=True,
+    takeoff_alt_is_amsl=True, arm_in_velocity_mode=False, arm_mode="LOITER", double_mode_ack=True,
+)
+
+
+def profile_for(autopilot: int) -> AutopilotProfile | None:
+    """The profile for HEARTBEAT.autopilot, or None (not a flight controller we know how to fly)."""
+    if autopilot == mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA:
+        return ARDUPILOT
+    if autopilot == mavlink.MAV_AUTOPILOT_PX4:
+        return PX4
+    return None

@@ -1,0 +1,242 @@
+"""High-level flight operations over a VehicleLink, with each autopilot's rules (see ../shared/tlogs).
+
+Each returns an OperationResult: accepted, refused (with the COMMAND_ACK result and the vehicle's
+STATUSTEXTs) or timed out. A mode counts only when the HEARTBEAT shows it, because PX4 ACKs DO_SET_MODE
+twice and its first ACK is always ACCEPTED.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import TYPE_CHECKING
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from gcs_voice.link.acks import ACCEPTED, REFUSED, TIMED_OUT, AckCollector, OperationResult, command_name
+from gcs_voice.link.state import CommandAck, VehicleState
+
+if TYPE_CHECKING:
+    from gcs_voice.link.vehicle_link import SetpointSource, VehicleLink
+
+__all__ = ["FlightOperations"]
+
+_NAN = float("nan")
+#: after a refusal, texts that explain it may still be on their way
+_REASON_GRACE_S = 0.25
+
+
+class FlightOperations:
+    """Mixed into VehicleLink: everything here talks through ``_send``, ``_collectors`` and ``wait_for``."""
+
+    # ---- commands -------------------------------------------------------------------------------
+    def _command(self: "VehicleLink", command: int, params: tuple[float, ...], settle_s: float = 0.0
+                 ) -> tuple[CommandAck | None, AckCollector]:
+        """Send COMMAND_LONG (with retries) and wait for its ACK; with ``settle_s`` take the last ACK in that window."""
+        state = self.state
+        collector = AckCollector()
+        with self._lock:
+            self._collectors.append(collector)
+        try:
+            ack: CommandAck | None = None
+            for confirmation in range(self.settings.command_retries + 1):
+                padded = (list(params) + [0.0] * 7)[:7]
+                self._send(self._conn.mav.command_long_encode(
+                    state.system_id or 1, state.component_id or 1, command, confirmation, *padded))
+                got = self.wait_for(lambda _s: bool(collector.acks_for(command)), self.settings.command_timeout_s)
+                if got is not None:
+                    if settle_s > 0:
+                        time.sleep(settle_s)
+                    ack = collector.acks_for(command)[-1]
+                    break
+            if ack is not None and not ack.accepted:
+                time.sleep(_REASON_GRACE_S)
+            return ack, collector
+        finally:
+            with self._lock:
+                self._collectors.remove(collector)
+
+    def _verdict(self: "VehicleLink", operation: str, command: int, ack: CommandAck | None,
+                 collector: AckCollector) -> OperationResult | None:
+        """None when accepted; else the refused / timed-out result."""
+        texts = tuple(t.text for t in collector.texts)
+        if ack is None:
+            return OperationResult(operation, TIMED_OUT, f"no COMMAND_ACK for {command_name(command)}", texts)
+        if not ack.accepted:
+            return OperationResult(operation, REFUSED, collector.reason(ack), texts)
+        return None
+
+    def _vehicle(self: "VehicleLink", operation: str) -> tuple[VehicleState, OperationResult | None]:
+        state = self.state
+        if state.system_id is None or not state.link_ok:
+            return state, OperationResult(operation, TIMED_OUT, "no vehicle on the link")
+        if state.profile is None:
+            return state, OperationResult(operation, REFUSED, "not an ArduPilot or PX4 flight controller")
+        return state, None
+
+    # ---- modes ----------------------------------------------------------------------------------
+    def set_mode(self: "VehicleLink", mode: str) -> OperationResult:
+        operation = f"set mode {mode}"
+        state, problem = self._vehicle(operation)
+        if problem:
+            return problem
+        profile = state.profile
+        try:
+            params, wanted = profile.mode_params(mode), profile.custom_mode(mode)
+        except KeyError:
+            return OperationResult(operation, REFUSED, f"{profile.name} has no mode {mode}")
+        if state.custom_mode == wanted:
+            return OperationResult(operation, ACCEPTED, "already in it")
+        settle = self.settings.ack_settle_s if profile.double_mode_ack else 0.0
+        ack, collector = self._command(mavlink.MAV_CMD_DO_SET_MODE, params, settle)
+        refused = self._verdict(operation, mavlink.MAV_CMD_DO_SET_MODE, ack, collector)
+        if refused and refused.status == REFUSED:
+            return refused
+        seen = self.wait_for(lambda s: s.custom_mode == wanted, self.settings.mode_confirm_s)
+        if seen is None:
+            now = self.state.mode
+            said = "; ".join(collector.warnings())
+            return OperationResult(operation, REFUSED if ack else TIMED_OUT,
+                                   f"HEARTBEAT still shows {now}" + (f": {said}" if said else ""))
+        return OperationResult(operation, ACCEPTED)
+
+    def set_velocity_mode(self: "VehicleLink", source: "SetpointSource | None" = None) -> OperationResult:
+        """GUIDED (ArduPilot) or OFFBOARD (PX4, after streaming setpoints for ``offboard_prestream_s``)."""
+        state, problem = self._vehicle("velocity control")
+        if problem:
+            return problem
+        if state.profile.needs_prestream:
+            if source is not None or not self.streaming:
+                self.start_stream(source)
+            time.sleep(self.settings.offboard_prestream_s)
+        return self.set_mode(state.profile.velocity_mode)
+
+    # ---- arming ---------------------------------------------------------------------------------
+    def arm(self: "VehicleLink", timeout_s: float | None = None) -> OperationResult:
+        """ARM, retried every ``arm_retry_s`` until accepted or ``timeout_s`` (refusal texts say why)."""
+        state, problem = self._vehicle("arm")
+        if problem:
+            return problem
+        if state.armed:
+            return OperationResult("arm", ACCEPTED, "already armed")
+        deadline = time.monotonic() + (self.settings.arm_timeout_s if timeout_s is None else timeout_s)
+        last: OperationResult | None = None
+        while True:
+            ack, collector = self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,))
+            last = self._verdict("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, ack, collector)
+            if last is None:
+                if self.wait_for(lambda s: bool(s.armed), self.settings.mode_confirm_s):
+                    return OperationResult("arm", ACCEPTED, "", tuple(t.text for t in collector.texts))
+                last = OperationResult("arm", TIMED_OUT, "ACK accepted but HEARTBEAT never showed armed")
+            self.on_event(str(last))
+            wait_s = min(self.settings.arm_retry_s, deadline - time.monotonic())
+            if wait_s <= 0:
+                return last
+            time.sleep(wait_s)
+
+    def disarm(self: "VehicleLink") -> OperationResult:
+        state, problem = self._vehicle("disarm")
+        if problem:
+            return problem
+        self.stop_stream()
+        if state.armed is False:
+            return OperationResult("disarm", ACCEPTED, "already disarmed")
+        ack, collector = self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,))
+        refused = self._verdict("disarm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, ack, collector)
+        if refused:
+            return refused
+        if self.wait_for(lambda s: s.armed is False, self.settings.mode_confirm_s) is None:
+            return OperationResult("disarm", TIMED_OUT, "HEARTBEAT still shows armed")
+        return OperationResult("disarm", ACCEPTED)
+
+    # ---- take-off and landing -------------------------------------------------------------------
+    def takeoff(self: "VehicleLink", altitude_m: float, source: "SetpointSource | None" = None) -> OperationResult:
+        """Arm and climb to ``altitude_m`` above home, then stream setpoints in the velocity mode.
+
+        ArduCopter: GUIDED, arm, NAV_TAKEOFF(param7 = metres above home); nothing is streamed during
+        the climb (a velocity setpoint would end the take-off). PX4: Hold, arm, NAV_TAKEOFF(param7 =
+        home AMSL + metres), then stream and switch to OFFBOARD.
+        """
+        operation = f"take off to {altitude_m:g} m"
+        state, problem = self._vehicle(operation)
+        if problem:
+            return problem
+        if not (0.0 < altitude_m <= self.settings.ceiling_m):
+            return OperationResult(operation, REFUSED, f"altitude must be in (0, {self.settings.ceiling_m:g}] m")
+        if state.armed and state.landed_state == "IN_AIR":
+            return OperationResult(operation, REFUSED, "already flying")
+        profile = state.profile
+        self.stop_stream()
+        step = self.set_mode(profile.arm_mode)
+        if not step.ok:
+            return OperationResult(operation, step.status, str(step), step.texts)
+        step = self.arm()
+        if not step.ok:
+            return OperationResult(operation, step.status, str(step), step.texts)
+        param7 = altitude_m
+        if profile.takeoff_alt_is_amsl:
+            home = self.state.home_amsl_m
+            if home is None:
+                self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),))
+                got = self.wait_for(lambda s: s.home_amsl_m is not None, 2.0)
+                home = got.home_amsl_m if got else None
+            if home is None:
+                return OperationResult(operation, REFUSED, "home altitude unknown (no HOME_POSITION)")
+            param7 = home + altitude_m
+        ack, collector = self._command(mavlink.MAV_CMD_NAV_TAKEOFF, (0.0, 0.0, 0.0, _NAN, _NAN, _NAN, param7))
+        refused = self._verdict(operation, mavlink.MAV_CMD_NAV_TAKEOFF, ack, collector)
+        if refused:
+            return refused
+        target_m = altitude_m * self.settings.takeoff_reached_fraction
+        reached = self.wait_for(lambda s: (s.height_m or 0.0) >= target_m or not s.link_ok,
+                                self.settings.takeoff_timeout_s)
+        if reached is None or not reached.link_ok:
+            return OperationResult(operation, TIMED_OUT, f"height {self.state.height_m} m after "
+                                   f"{self.settings.takeoff_timeout_s:g} s")
+        if profile.needs_prestream:
+            step = self.set_velocity_mode(source)
+            if not step.ok:
+                return OperationResult(operation, step.status, str(step), step.texts)
+        else:
+            self.start_stream(source)
+        return OperationResult(operation, ACCEPTED, f"{reached.height_m:.2f} m")
+
+    def land(self: "VehicleLink") -> OperationResult:
+        """NAV_LAND at the current position; the stream stops first (both autopilots land on their own)."""
+        state, problem = self._vehicle("land")
+        if problem:
+            return problem
+        self.stop_stream()
+        ack, collector = self._command(mavlink.MAV_CMD_NAV_LAND, (0.0, 0.0, 0.0, _NAN, _NAN, _NAN, _NAN))
+        refused = self._verdict("land", mavlink.MAV_CMD_NAV_LAND, ack, collector)
+        if refused:
+            return refused
+        wanted = state.profile.custom_mode(state.profile.land_mode)
+        if self.wait_for(lambda s: s.custom_mode == wanted, self.settings.mode_confirm_s) is None:
+            return OperationResult("land", TIMED_OUT, f"HEARTBEAT still shows {self.state.mode}")
+        return OperationResult("land", ACCEPTED)
+
+    # ---- telemetry ------------------------------------------------------------------------------
+    def request_telemetry(self: "VehicleLink") -> OperationResult:
+        """SET_MESSAGE_INTERVAL for what the bridge reads; REQUEST_DATA_STREAM when any is not accepted."""
+        state, problem = self._vehicle("request telemetry")
+        if problem:
+            return problem
+        wanted = {
+            mavlink.MAVLINK_MSG_ID_LOCAL_POSITION_NED: self.settings.local_position_ned_hz,
+            mavlink.MAVLINK_MSG_ID_ATTITUDE: self.settings.attitude_hz,
+            mavlink.MAVLINK_MSG_ID_EXTENDED_SYS_STATE: self.settings.extended_sys_state_hz,
+            mavlink.MAVLINK_MSG_ID_GLOBAL_POSITION_INT: self.settings.global_position_int_hz,
+        }
+        refused: list[str] = []
+        for message_id, rate_hz in wanted.items():
+            ack, _ = self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(message_id), 1e6 / rate_hz))
+            if ack is None or not ack.accepted:
+                refused.append(str(message_id))
+        self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),))
+        if refused:
+            self._send(self._conn.mav.request_data_stream_encode(
+                state.system_id, state.component_id, mavlink.MAV_DATA_STREAM_ALL, self.settings.data_stream_hz, 1))
+            return OperationResult("request telemetry", REFUSED,
+                                   f"SET_MESSAGE_INTERVAL not accepted for {', '.join(refused)}; "
+                                   "asked REQUEST_DATA_STREAM instead")
+        return OperationResult("request telemetry", ACCEPTED)

@@ -1,0 +1,258 @@
+"""Vehicle state from MAVLink, fed one message at a time (live, or from a .tlog for replay tests).
+
+The tracker locks onto the first flight controller whose HEARTBEAT it hears and ignores other system
+ids and ground stations. Every field keeps its last finite value: NaN, infinities and malformed
+messages are dropped, never stored. STATUSTEXT chunks are reassembled by (sender, id, chunk_seq) and
+PX4's trailing TAB (its "also sent as EVENT" marker) is stripped.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from gcs_voice.link.autopilots import AutopilotProfile, profile_for
+from gcs_voice.link.setpoints import wrap_deg
+
+__all__ = ["VehicleState", "VehicleStateTracker", "StatusText", "CommandAck", "result_name", "landed_state_name"]
+
+STATUSTEXT_CHUNK_CHARS = 50
+_CHUNK_STALE_S = 2.0
+
+
+def result_name(result: int) -> str:
+    """MAV_RESULT name without its prefix ("ACCEPTED", "FAILED", ...)."""
+    entry = mavlink.enums["MAV_RESULT"].get(result)
+    return entry.name.removeprefix("MAV_RESULT_") if entry else f"RESULT_{result}"
+
+
+def landed_state_name(value: int) -> str:
+    entry = mavlink.enums["MAV_LANDED_STATE"].get(value)
+    return entry.name.removeprefix("MAV_LANDED_STATE_") if entry else f"LANDED_STATE_{value}"
+
+
+@dataclass(frozen=True)
+class StatusText:
+    time_s: float
+    severity: int
+    text: str
+
+
+@dataclass(frozen=True)
+class CommandAck:
+    time_s: float
+    command: int
+    result: int
+
+    @property
+    def result_name(self) -> str:
+        return result_name(self.result)
+
+    @property
+    def accepted(self) -> bool:
+        return self.result == mavlink.MAV_RESULT_ACCEPTED
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """A snapshot. None = not heard yet. Positions are local NED metres; heading clockwise from north."""
+
+    system_id: int | None = None
+    component_id: int | None = None
+    profile: AutopilotProfile | None = None
+    mav_type: int | None = None
+    base_mode: int | None = None
+    custom_mode: int | None = None
+    mode: str | None = None
+    armed: bool | None = None
+    system_status: int | None = None
+    landed_state: str | None = None
+    north_m: float | None = None
+    east_m: float | None = None
+    down_m: float | None = None
+    north_m_s: float | None = None
+    east_m_s: float | None = None
+    down_m_s: float | None = None
+    heading_deg: float | None = None
+    home_north_m: float | None = None
+    home_east_m: float | None = None
+    home_down_m: float | None = None
+    home_alt_amsl_m: float | None = None
+    alt_amsl_m: float | None = None
+    relative_alt_m: float | None = None
+    last_heard_s: float | None = None
+    link_ok: bool = False
+    heartbeats: int = 0
+
+    @property
+    def autopilot(self) -> str | None:
+        return self.profile.name if self.profile else None
+
+    @property
+    def height_m(self) -> float | None:
+        """Height above home from the local z (smoother than GLOBAL_POSITION_INT on PX4), else relative_alt."""
+        if self.down_m is not None:
+            return -(self.down_m - (self.home_down_m or 0.0))
+        return self.relative_alt_m
+
+    @property
+    def home_distance_m(self) -> float | None:
+        """Horizontal distance from home (local origin when home is unknown)."""
+        if self.north_m is None or self.east_m is None:
+            return None
+        return math.hypot(self.north_m - (self.home_north_m or 0.0), self.east_m - (self.home_east_m or 0.0))
+
+    @property
+    def home_amsl_m(self) -> float | None:
+        """Home altitude AMSL: HOME_POSITION, else GLOBAL_POSITION_INT alt - relative_alt."""
+        if self.home_alt_amsl_m is not None:
+            return self.home_alt_amsl_m
+        if self.alt_amsl_m is not None and self.relative_alt_m is not None:
+            return self.alt_amsl_m - self.relative_alt_m
+        return None
+
+
+def _finite(*values: Any) -> bool:
+    try:
+        return all(math.isfinite(float(v)) for v in values)
+    except (TypeError, ValueError):
+        return False
+
+
+@dataclass
+class _Pending:
+    severity: int
+    chunks: list[str]
+    started_s: float
+
+
+@dataclass
+class VehicleStateTracker:
+    """Feed ``update(msg, now_s)``; read ``state``; new ACKs and texts come back from ``update``."""
+
+    gcs_system_id: int = 255
+    link_lost_s: float = 2.0
+    state: VehicleState = field(default_factory=VehicleState)
+    acks: deque = field(default_factory=lambda: deque(maxlen=256))
+    texts: deque = field(default_factory=lambda: deque(maxlen=256))
+    ignored: int = 0
+    _pending: dict = field(default_factory=dict)
+
+    def snapshot(self, now_s: float) -> VehicleState:
+        """The state with ``link_ok`` evaluated at ``now_s``."""
+        heard = self.state.last_heard_s
+        ok = heard is not None and now_s - heard < self.link_lost_s
+        return self.state if ok == self.state.link_ok else replace(self.state, link_ok=ok)
+
+    def update(self, msg: Any, now_s: float) -> list[CommandAck | StatusText]:
+        """Take one message; return the ACKs and complete STATUSTEXTs it produced. Never raises on bad input."""
+        try:
+            return self._update(msg, now_s)
+        except (AttributeError, TypeError, ValueError, KeyError, OverflowError):
+            self.ignored += 1
+            return []
+
+    def _update(self, msg: Any, now_s: float) -> list[CommandAck | StatusText]:
+        kind = msg.get_type()
+        sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
+        if kind == "BAD_DATA" or sysid == self.gcs_system_id:
+            return []
+        if self.state.system_id is None:
+            if kind == "HEARTBEAT" and self._is_flight_controller(msg):
+                self.state = replace(self.state, system_id=sysid, component_id=compid)
+            elif kind == "STATUSTEXT":  # boot messages come before the first HEARTBEAT
+                return self._statustext(msg, now_s)
+            else:
+                return []
+        if sysid != self.state.system_id:
+            self.ignored += 1
+            return []
+        if compid == self.state.component_id or kind in ("STATUSTEXT", "COMMAND_ACK"):
+            self.state = replace(self.state, last_heard_s=now_s, link_ok=True)
+        handler = getattr(self, "_" + kind.lower(), None)
+        if handler is None or (compid != self.state.component_id and kind not in ("STATUSTEXT", "COMMAND_ACK")):
+            return []
+        return handler(msg, now_s) or []
+
+    @staticmethod
+    def _is_flight_controller(msg: Any) -> bool:
+        return msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in (
+            mavlink.MAV_TYPE_GCS, mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_TYPE_GIMBAL,
+            mavlink.MAV_TYPE_CAMERA, mavlink.MAV_TYPE_ADSB)
+
+    def _heartbeat(self, msg: Any, now_s: float) -> None:
+        if not self._is_flight_controller(msg):
+            return
+        profile = profile_for(msg.autopilot)
+        mode = profile.mode_name(msg.base_mode, msg.custom_mode) if profile else f"MODE({msg.custom_mode})"
+        self.state = replace(
+            self.state, profile=profile, mav_type=msg.type, base_mode=msg.base_mode, custom_mode=msg.custom_mode,
+            mode=mode, armed=bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
+            system_status=msg.system_status, heartbeats=self.state.heartbeats + 1,
+        )
+
+    def _extended_sys_state(self, msg: Any, now_s: float) -> None:
+        self.state = replace(self.state, landed_state=landed_state_name(int(msg.landed_state)))
+
+    def _local_position_ned(self, msg: Any, now_s: float) -> None:
+        if _finite(msg.x, msg.y, msg.z):
+            self.state = replace(self.state, north_m=float(msg.x), east_m=float(msg.y), down_m=float(msg.z))
+        if _finite(msg.vx, msg.vy, msg.vz):
+            self.state = replace(self.state, north_m_s=float(msg.vx), east_m_s=float(msg.vy), down_m_s=float(msg.vz))
+
+    def _attitude(self, msg: Any, now_s: float) -> None:
+        if _finite(msg.yaw):
+            self.state = replace(self.state, heading_deg=wrap_deg(math.degrees(float(msg.yaw))))
+
+    def _global_position_int(self, msg: Any, now_s: float) -> None:
+        self.state = replace(self.state, alt_amsl_m=msg.alt / 1000.0, relative_alt_m=msg.relative_alt / 1000.0)
+
+    def _home_position(self, msg: Any, now_s: float) -> None:
+        if _finite(msg.x, msg.y, msg.z):
+            self.state = replace(self.state, home_north_m=float(msg.x), home_east_m=float(msg.y),
+                                 home_down_m=float(msg.z))
+        self.state = replace(self.state, home_alt_amsl_m=msg.altitude / 1000.0)
+
+    def _command_ack(self, msg: Any, now_s: float) -> list[CommandAck]:
+        target = getattr(msg, "target_system", 0)
+        if target not in (0, self.gcs_system_id):
+            return []
+        ack = CommandAck(now_s, int(msg.command), int(msg.result))
+        self.acks.append(ack)
+        return [ack]
+
+    def _statustext(self, msg: Any, now_s: float) -> list[StatusText]:
+        text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode("utf-8", "replace")
+        text = text.split("\0", 1)[0]
+        text_id, chunk_seq = int(getattr(msg, "id", 0) or 0), int(getattr(msg, "chunk_seq", 0) or 0)
+        done: list[StatusText] = self._flush_stale(now_s)
+        if text_id == 0:
+            done.append(self._emit(now_s, int(msg.severity), text))
+            return done
+        key = (msg.get_srcSystem(), msg.get_srcComponent(), text_id)
+        pending = self._pending.get(key)
+        if chunk_seq == 0 or pending is None or len(pending.chunks) != chunk_seq:
+            if pending is not None:  # a chunk went missing: say what we have
+                done.append(self._emit(now_s, pending.severity, "".join(pending.chunks)))
+            pending = _Pending(int(msg.severity), [], now_s)
+            if chunk_seq != 0:
+                pending.chunks.append("...")
+        pending.chunks.append(text)
+        self._pending[key] = pending
+        if len(text) < STATUSTEXT_CHUNK_CHARS:
+            del self._pending[key]
+            done.append(self._emit(now_s, pending.severity, "".join(pending.chunks)))
+        return done
+
+    def _flush_stale(self, now_s: float) -> list[StatusText]:
+        stale = [k for k, p in self._pending.items() if now_s - p.started_s > _CHUNK_STALE_S]
+        return [self._emit(now_s, p.severity, "".join(p.chunks)) for p in (self._pending.pop(k) for k in stale)]
+
+    def _emit(self, now_s: float, severity: int, text: str) -> StatusText:
+        status = StatusText(now_s, severity, text.rstrip("\t\r\n "))
+        self.texts.append(status)
+        return status

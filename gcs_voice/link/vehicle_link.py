@@ -1,0 +1,223 @@
+"""The ground-station side of MAVLink: a threaded client for one vehicle.
+
+One reader/timer thread receives and tracks state, sends our GCS HEARTBEAT at 1 Hz, re-sends the
+current setpoint at 10 Hz while a stream is active, and notices a silent vehicle (link lost after
+``link_lost_s``: nothing more is commanded; the first setpoint after it returns is a stop). High-level
+operations (mode, arm, take-off, land, disarm) run in the caller's thread, wait on what the reader
+saw, and return an :class:`OperationResult`; they never raise for a refusal.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+from pymavlink.dialects.v20 import common as mavlink
+
+from gcs_voice.errors import LinkError
+from gcs_voice.link.acks import AckCollector
+from gcs_voice.link.connection import open_connection, parse_connection
+from gcs_voice.link.setpoints import Setpoint, setpoint_fields
+from gcs_voice.link.operations import FlightOperations
+from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
+from gcs_voice.link.tlog import TlogWriter
+from gcs_voice.settings import Settings, load_settings
+
+__all__ = ["VehicleLink", "SetpointSource"]
+
+#: called at the stream rate with the latest state; returns the setpoint to send
+SetpointSource = Callable[[VehicleState], Setpoint]
+
+
+class VehicleLink(FlightOperations):
+    """``with VehicleLink("udpin:0.0.0.0:14550") as link: link.wait_vehicle(); link.takeoff(1.5)``."""
+
+    def __init__(self, connection: str, settings: Settings | None = None, tlog_path: str | Path | None = None,
+                 on_event: Callable[[str], None] | None = None) -> None:
+        self.spec = parse_connection(connection)
+        self.settings = settings or load_settings()
+        self.tlog = TlogWriter(tlog_path) if tlog_path else None
+        self.on_event = on_event or (lambda _line: None)
+        self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
+        self._conn: Any = None
+        self._lock = threading.RLock()
+        self._changed = threading.Condition(self._lock)
+        self._send_lock = threading.Lock()
+        self._collectors: list[AckCollector] = []
+        self._source: SetpointSource | None = None
+        self._stop_first = False
+        self._link_was_ok = False
+        self._thread: threading.Thread | None = None
+        self._running = False
+        self._boot_s = time.monotonic()
+        self.last_setpoint: Setpoint | None = None
+        self.setpoints_sent = 0
+        self.read_errors = 0
+
+    # ---- lifetime -------------------------------------------------------------------------------
+    def open(self) -> "VehicleLink":
+        self._conn = open_connection(self.spec, self.settings.gcs_system_id, self.settings.gcs_component_id)
+        self._running = True
+        self._thread = threading.Thread(target=self._loop, name="vehicle-link", daemon=True)
+        self._thread.start()
+        return self
+
+    def close(self) -> None:
+        self._running = False
+        if self._thread is not None:
+            self._thread.join(timeout=2.0)
+        if self._conn is not None:
+            try:
+                self._conn.close()
+            except OSError:
+                pass
+        if self.tlog is not None:
+            self.tlog.close()
+
+    def __enter__(self) -> "VehicleLink":
+        return self.open()
+
+    def __exit__(self, *_exc: Any) -> None:
+        self.close()
+
+    # ---- state ----------------------------------------------------------------------------------
+    @property
+    def state(self) -> VehicleState:
+        with self._lock:
+            return self.tracker.snapshot(time.monotonic())
+
+    def wait_for(self, predicate: Callable[[VehicleState], bool], timeout_s: float) -> VehicleState | None:
+        """Block until ``predicate(state)`` holds (that state) or ``timeout_s`` passes (None)."""
+        deadline = time.monotonic() + timeout_s
+        with self._changed:
+            while True:
+                state = self.tracker.snapshot(time.monotonic())
+                if predicate(state):
+                    return state
+                left = deadline - time.monotonic()
+                if left <= 0:
+                    return None
+                self._changed.wait(min(left, 0.1))
+
+    def wait_vehicle(self, timeout_s: float = 30.0) -> VehicleState:
+        """Wait for a flight controller's HEARTBEAT; LinkError if none comes."""
+        state = self.wait_for(lambda s: s.heartbeats > 0 and s.link_ok, timeout_s)
+        if state is None:
+            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s")
+        return state
+
+    # ---- the reader / timer thread --------------------------------------------------------------
+    def _loop(self) -> None:
+        period_hb, period_sp = 1.0 / self.settings.heartbeat_hz, 1.0 / self.settings.setpoint_hz
+        next_hb = next_sp = time.monotonic()
+        while self._running:
+            self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
+            now = time.monotonic()
+            if now >= next_hb:
+                next_hb = max(next_hb + period_hb, now)
+                self._send(self._conn.mav.heartbeat_encode(
+                    mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+            self._check_link(now)
+            if now >= next_sp:
+                next_sp = max(next_sp + period_sp, now)
+                self._stream_tick()
+
+    def _receive(self, timeout_s: float) -> None:
+        try:
+            msg = self._conn.recv_match(blocking=True, timeout=timeout_s)
+            while msg is not None and self._running:
+                self._take(msg)
+                msg = self._conn.recv_match(blocking=False)
+        except Exception:  # a socket error or a parser surprise must not end the link
+            self.read_errors += 1
+            time.sleep(0.01)
+
+    def _take(self, msg: Any) -> None:
+        if msg.get_type() == "BAD_DATA":
+            return
+        if self.tlog is not None:
+            self.tlog.write(msg.get_msgbuf())
+        with self._changed:
+            events = self.tracker.update(msg, time.monotonic())
+            for event in events:
+                for collector in self._collectors:
+                    collector.take(event)
+            self._changed.notify_all()
+        for event in events:
+            if isinstance(event, StatusText):
+                self.on_event(f"vehicle: {event.text}")
+
+    def _check_link(self, now: float) -> None:
+        with self._lock:
+            state = self.tracker.snapshot(now)
+        if state.last_heard_s is None or state.link_ok == self._link_was_ok:
+            return
+        self._link_was_ok = state.link_ok
+        if not state.link_ok:
+            self._stop_first = True
+            self.on_event(f"link lost: vehicle silent for {self.settings.link_lost_s:g} s")
+        else:
+            self.on_event("link back")
+        with self._changed:
+            self._changed.notify_all()
+
+    def _send(self, msg: Any) -> None:
+        with self._send_lock:
+            try:
+                self._conn.mav.send(msg)
+            except OSError:
+                return
+            if self.tlog is not None:
+                self.tlog.write(msg.get_msgbuf())
+
+    # ---- setpoint stream ------------------------------------------------------------------------
+    def start_stream(self, source: SetpointSource | None = None) -> None:
+        """Re-send ``source(state)`` at ``setpoint_hz`` from now on (default: hold at the current heading)."""
+        with self._lock:
+            self._source = source or self._hold_source()
+
+    def stop_stream(self) -> None:
+        with self._lock:
+            self._source = None
+
+    @property
+    def streaming(self) -> bool:
+        return self._source is not None
+
+    def hold(self) -> None:
+        """Zero velocity at the current heading target, streamed."""
+        self.start_stream(self._hold_source())
+
+    def _hold_source(self) -> SetpointSource:
+        state = self.state
+        yaw = (self.last_setpoint.yaw_deg if self.last_setpoint is not None
+               else state.heading_deg if state.heading_deg is not None else 0.0)
+        return lambda _state: Setpoint.stop(yaw)
+
+    def _stream_tick(self) -> None:
+        with self._lock:
+            source, state = self._source, self.tracker.snapshot(time.monotonic())
+        if source is None or state.system_id is None or not state.link_ok:
+            return
+        try:
+            setpoint = source(state)
+        except Exception as exc:  # a broken source must not leave the last velocity running
+            self.on_event(f"setpoint source failed ({exc}); holding")
+            setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
+        if self._stop_first:
+            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
+        self.send_setpoint(setpoint)
+
+    def send_setpoint(self, setpoint: Setpoint) -> None:
+        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; tests may too)."""
+        state = self.state
+        if state.system_id is None:
+            return
+        boot_ms = int((time.monotonic() - self._boot_s) * 1000)
+        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
+        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
+        self.last_setpoint = setpoint
+        self.setpoints_sent += 1

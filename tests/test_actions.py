@@ -1,0 +1,152 @@
+"""ActionMapper: direction of every class at several headings, turn accumulation, floor, ceiling, fence, NaN."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+import pytest
+
+from gcs_voice.actions import ActionMapper, UnknownActionError
+from gcs_voice.dictionary import ACTIONS, FLIGHT_ACTIONS
+from gcs_voice.link.state import VehicleState
+from gcs_voice.settings import load_settings
+
+SETTINGS = load_settings()
+H, V = SETTINGS.horizontal_speed_m_s, SETTINGS.vertical_speed_m_s
+
+
+def flying(heading_deg: float = 0.0, height_m: float = 3.0, north_m: float = 0.0, east_m: float = 0.0) -> VehicleState:
+    return VehicleState(system_id=1, heading_deg=heading_deg, north_m=north_m, east_m=east_m, down_m=-height_m,
+                        home_north_m=0.0, home_east_m=0.0, home_down_m=0.0, last_heard_s=0.0, link_ok=True)
+
+
+# (action, forward, right) -> direction in the body frame of the heading target
+BODY = {"go_forward": (1, 0), "go_back": (-1, 0), "go_right": (0, 1), "go_left": (0, -1)}
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0, 90.0, 180.0, 271.5])
+@pytest.mark.parametrize("action", sorted(BODY))
+def test_horizontal_moves_keep_heading(action: str, heading_deg: float) -> None:
+    mapper = ActionMapper(SETTINGS)
+    state = flying(heading_deg)
+    mapped = mapper.apply(action, state)
+    sp = mapper.setpoint(state)
+    forward, right = BODY[action]
+    yaw = math.radians(heading_deg)
+    expected_north = H * (forward * math.cos(yaw) - right * math.sin(yaw))
+    expected_east = H * (forward * math.sin(yaw) + right * math.cos(yaw))
+    assert sp.ned_m_s() == pytest.approx((expected_north, expected_east, 0.0), abs=1e-9)
+    assert sp.yaw_deg == pytest.approx(heading_deg) == mapped.yaw_target_deg
+    assert mapped.flight_operation is None and mapper.limit_reason == ""
+
+
+def test_go_right_at_heading_90_flies_south() -> None:
+    mapper = ActionMapper(SETTINGS)
+    state = flying(90.0)
+    mapper.apply("go_right", state)
+    north, east, down = mapper.setpoint(state).ned_m_s()
+    assert north == pytest.approx(-H) and abs(east) < 1e-12 and down == 0.0
+
+
+@pytest.mark.parametrize(("action", "down_m_s"), [("up", -V), ("down", V), ("stop", 0.0)])
+def test_vertical_and_stop(action: str, down_m_s: float) -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("go_forward", flying(10.0))
+    mapper.apply(action, flying(50.0))  # heading moved, target did not
+    sp = mapper.setpoint(flying(50.0))
+    assert (sp.forward_m_s, sp.right_m_s, sp.down_m_s) == (0.0, 0.0, down_m_s)
+    assert sp.yaw_deg == 10.0
+
+
+def test_turns_accumulate_from_the_target_not_the_heading() -> None:
+    mapper = ActionMapper(SETTINGS)
+    assert mapper.apply("turn_right", flying(10.0)).yaw_target_deg == 100.0
+    assert mapper.apply("turn_right", flying(40.0)).yaw_target_deg == 190.0  # vehicle still turning
+    assert mapper.apply("turn_left", flying(150.0)).yaw_target_deg == 100.0
+    for _ in range(3):
+        mapper.apply("turn_left", flying(0.0))
+    assert mapper.yaw_target_deg == pytest.approx(190.0)
+    sp = mapper.setpoint(flying(0.0))
+    assert sp.is_stop and sp.yaw_deg == pytest.approx(190.0)
+    mapper.apply("go_forward", flying(190.0))
+    north, east, _ = mapper.setpoint(flying(190.0)).ned_m_s()
+    assert north == pytest.approx(H * math.cos(math.radians(190))) and east == pytest.approx(H * math.sin(math.radians(190)))
+
+
+def test_down_stops_itself_at_the_floor() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("down", flying(height_m=2.0))
+    for height in (2.0, 1.2, 0.51):
+        assert mapper.setpoint(flying(height_m=height)).down_m_s == V
+    sp = mapper.setpoint(flying(height_m=0.5))
+    assert sp.is_stop and mapper.action == "stop" and "floor" in mapper.events[-1]
+    assert mapper.setpoint(flying(height_m=1.0)).is_stop  # stays stopped: the action became stop
+    mapper.apply("down", flying(height_m=0.4))
+    assert mapper.setpoint(flying(height_m=0.4)).is_stop
+    mapper.apply("up", flying(height_m=0.4))
+    assert mapper.setpoint(flying(height_m=0.4)).down_m_s == -V
+
+
+def test_ceiling_zeroes_only_the_climb() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("up", flying(height_m=SETTINGS.ceiling_m - 0.1))
+    assert mapper.setpoint(flying(height_m=SETTINGS.ceiling_m - 0.1)).down_m_s == -V
+    sp = mapper.setpoint(flying(height_m=SETTINGS.ceiling_m))
+    assert sp.down_m_s == 0.0 and "ceiling" in mapper.limit_reason
+    mapper.apply("down", flying(height_m=SETTINGS.ceiling_m + 1))
+    assert mapper.setpoint(flying(height_m=SETTINGS.ceiling_m + 1)).down_m_s == V  # coming back is allowed
+
+
+def test_fence_blocks_outward_motion_only() -> None:
+    r = SETTINGS.fence_radius_m
+    mapper = ActionMapper(SETTINGS)
+    at_edge = flying(0.0, north_m=r + 0.1)
+    mapper.apply("go_forward", at_edge)  # heading north, already north of the fence
+    sp = mapper.setpoint(at_edge)
+    assert sp.is_stop and "fence" in mapper.limit_reason
+    mapper.apply("go_back", at_edge)  # back toward home
+    assert mapper.setpoint(at_edge).forward_m_s == -H and mapper.limit_reason == ""
+    mapper.apply("go_right", at_edge)  # east, tangential at the edge: not outward
+    sp = mapper.setpoint(at_edge)
+    assert sp.right_m_s == H  # exactly tangential is not outward
+    inside = flying(0.0, north_m=r - 1.0)
+    mapper.apply("go_forward", inside)
+    assert mapper.setpoint(inside).forward_m_s == H
+
+
+def test_unknown_height_or_position_commands_nothing_unsafe() -> None:
+    mapper = ActionMapper(SETTINGS)
+    blind = VehicleState(system_id=1, heading_deg=0.0, last_heard_s=0.0, link_ok=True)
+    for action in ("up", "down", "go_forward"):
+        mapper.apply(action, blind)
+        assert mapper.setpoint(blind).is_stop, action
+
+
+def test_nan_never_leaves_the_mapper() -> None:
+    mapper = ActionMapper(SETTINGS)
+    nan_state = replace(flying(), heading_deg=math.nan, north_m=math.nan, down_m=math.inf)
+    for action in ("go_forward", "turn_right", "up", "down", "stop"):
+        mapper.apply(action, nan_state)
+        sp = mapper.setpoint(nan_state)
+        assert all(math.isfinite(v) for v in (sp.forward_m_s, sp.right_m_s, sp.down_m_s, sp.yaw_deg))
+    assert mapper.yaw_target_deg == 90.0  # NaN heading -> 0 deg target, then one turn_right
+
+
+def test_link_loss_turns_the_action_into_stop() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("go_forward", flying(45.0))
+    lost = replace(flying(45.0), link_ok=False)
+    assert mapper.setpoint(lost).is_stop and mapper.action == "stop"
+    assert mapper.setpoint(flying(45.0)).is_stop  # back: still a stop until the next command
+
+
+def test_flight_actions_and_unknown_ids() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("go_left", flying())
+    for action in FLIGHT_ACTIONS:
+        mapped = mapper.apply(action, flying())
+        assert mapped.flight_operation == action and mapper.action == "stop"
+    assert set(ACTIONS) >= {"take_off", "land", "arm", "disarm"}
+    with pytest.raises(UnknownActionError):
+        mapper.apply("barrel_roll", flying())

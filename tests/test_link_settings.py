@@ -1,0 +1,43 @@
+"""Settings: packaged defaults, a user TOML file over them, flags over that; mistakes named."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from gcs_voice.settings import SettingsError, load_settings
+
+
+def test_defaults_are_sensible() -> None:
+    s = load_settings()
+    assert (s.horizontal_speed_m_s, s.vertical_speed_m_s, s.floor_m) == (0.5, 0.3, 0.5)
+    assert s.setpoint_hz == 10 and s.link_lost_s == 2 and (s.gcs_system_id, s.gcs_component_id) == (255, 190)
+
+
+def test_user_file_then_flags(tmp_path: Path) -> None:
+    path = tmp_path / "mine.toml"
+    path.write_text("[safety]\nceiling_m = 4.0\n[motion]\nhorizontal_speed_m_s = 1\n")
+    s = load_settings(path, horizontal_speed_m_s=0.8, floor_m=None)
+    assert (s.ceiling_m, s.horizontal_speed_m_s, s.floor_m) == (4.0, 0.8, 0.5)
+
+
+@pytest.mark.parametrize(("text", "needle"), [
+    ("[safety]\nceling_m = 4\n", "unknown setting 'celing_m'"),
+    ("[safety]\nceiling_m = 'high'\n", "must be a number"),
+    ("[safety]\nceiling_m = nan\n", "finite"),
+    ("[safety]\nfloor_m = 20\n", "below ceiling_m"),
+    ("[link]\ngcs_system_id = 1.5\n", "whole number"),
+    ("ceiling_m = [", "invalid TOML"),
+])
+def test_mistakes_are_one_line_errors(tmp_path: Path, text: str, needle: str) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(text)
+    with pytest.raises(SettingsError) as info:
+        load_settings(path)
+    assert needle in str(info.value) and str(path) in str(info.value)
+
+
+def test_missing_file() -> None:
+    with pytest.raises(SettingsError, match="not found"):
+        load_settings("/nonexistent/settings.toml")
