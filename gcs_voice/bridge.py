@@ -203,8 +203,6 @@ class Bridge:
             self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result))
             request.accepted = ok
             if ok and action == "take_off":
-                self.mapper.reset_heading(self.link.state)
-                self.link.start_stream(self.mapper.setpoint)
                 self.flying_ready.set()
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
@@ -215,23 +213,16 @@ class Bridge:
         """Run one flight operation on the link (blocking); returns its OperationResult."""
         link = self.link
         if action == "take_off":
-            if not link.state.armed:
-                armed = link.arm()
-                if not armed.ok:
-                    return armed
-            return link.takeoff(self.takeoff_m)
+            # The link sets the arming mode, arms (retrying while the vehicle says it cannot yet), climbs,
+            # then streams the mapper's setpoints (a hold at the heading kept through the climb).
+            self.mapper.reset_heading(link.state)
+            return link.takeoff(self.takeoff_m, source=self.mapper.setpoint)
         if action == "land":
-            result = link.land()
-            if result.ok:
-                link.stop_stream()
-            return result
+            return link.land()  # stops the stream first: both autopilots land on their own
         if action == "arm":
             return link.arm()
         if action == "disarm":
-            result = link.disarm()
-            if result.ok:
-                link.stop_stream()
-            return result
+            return link.disarm()
         raise ValueError(f"not a flight operation: {action}")
 
     # ---- the end ------------------------------------------------------------------------------------
