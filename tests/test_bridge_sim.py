@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from e2e_support import SPEEDUP
+from e2e_support import SPEEDUP, require_parts
 from gcs_voice.actions import ActionMapper
 from gcs_voice.bridge import Bridge, Request
 from gcs_voice.events import EventBus
@@ -37,6 +37,7 @@ def _wait(predicate, timeout_s: float) -> bool:
 
 def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
     """Motion before take-off refused; link lost: refused, silent, then a stop first; voice crash: stop, exit 1."""
+    require_parts("sim_bridge.cli")
     settings = load_settings()
     bus = EventBus()
     log = SessionLog(tmp_path / "s.jsonl")
