@@ -1,0 +1,154 @@
+"""The simulated quadrotor as one object: JSBSim dynamics + our controller + the room, stepped in lockstep.
+
+This is everything below MAVLink. The vehicle layer owns one ``Multicopter``, calls ``step(dt_s)`` from its
+loop, reads ``state``, sends ``set_target(ControlTarget)`` and turns ``pop_events()`` into STATUSTEXT.
+Units: SI, NED relative to home (the room's start spot, on the floor), yaw 0 = north, clockwise positive.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+
+from sim_bridge.control import DEFAULT_GAINS_PATH, CascadedController, ControlTarget, load_gains
+from sim_bridge.fdm import GEAR_HEIGHT_M, FdmSample, QuadFdm, RigidBodyState
+from sim_bridge.world import Contact, ContactModel, Room, load_contact_params
+
+__all__ = ["Multicopter", "RigidBodyState", "ControlTarget", "Contact", "DEFAULT_HOME", "DEFAULT_PHYSICS_HZ"]
+
+DEFAULT_HOME = (47.397742, 8.545594, 488.0)   # lat_deg, lon_deg, alt_m: PX4 SITL's default home
+DEFAULT_PHYSICS_HZ = 300.0                     # 200-400 Hz fly alike (docs/bench/sim.md); 300 keeps >= 60x
+MIN_PHYSICS_HZ, MAX_PHYSICS_HZ = 100.0, 2000.0
+ON_GROUND_MIN_GEAR_CONTACTS = 2                # of the three gear points
+ON_GROUND_MAX_CLIMB_M_S = 0.3                  # and not moving up faster than this
+
+
+class Multicopter:
+    """A quadrotor you arm, give targets and step; never raises on bad targets (see ``sim_bridge.control``)."""
+
+    def __init__(self, room: Room | None = None, *, home_lat_deg: float | None = None,
+                 home_lon_deg: float | None = None, home_alt_m: float | None = None,
+                 start_ned_m: tuple[float, float, float] = (0.0, 0.0, 0.0), start_yaw_rad: float | None = None,
+                 physics_hz: float = DEFAULT_PHYSICS_HZ, gains_path: str | Path = DEFAULT_GAINS_PATH) -> None:
+        """Home defaults to the room's ``home`` (else ``DEFAULT_HOME``); start yaw to the room's heading."""
+        room_home = (room.home_lat_deg, room.home_lon_deg, room.home_alt_m) if room else (None, None, None)
+        self.home_lat_deg = _first(home_lat_deg, room_home[0], DEFAULT_HOME[0])
+        self.home_lon_deg = _first(home_lon_deg, room_home[1], DEFAULT_HOME[1])
+        self.home_alt_m = _first(home_alt_m, room_home[2], DEFAULT_HOME[2])
+        self.room = room
+        self.start_ned_m = tuple(float(x) for x in start_ned_m)
+        self.start_yaw_rad = float(_first(start_yaw_rad, math.radians(room.start_yaw_deg) if room else None, 0.0))
+        if not (isinstance(physics_hz, (int, float)) and MIN_PHYSICS_HZ <= physics_hz <= MAX_PHYSICS_HZ):
+            raise ValueError(f"physics_hz must be {MIN_PHYSICS_HZ:g}..{MAX_PHYSICS_HZ:g}, not {physics_hz!r}")
+        self.physics_hz = float(physics_hz)
+        self._fdm = QuadFdm(self.physics_hz, self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
+        self.hover_throttle = self._fdm.find_hover_throttle()
+        self._controller = CascadedController(load_gains(gains_path), self._fdm.mass_kg,
+                                              self._fdm.inertia_kg_m2, self.hover_throttle)
+        self._contacts = ContactModel(room, load_contact_params()) if room else None
+        self.reset()
+
+    # ---- lifecycle -------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to the start spot, at rest, disarmed, time 0, no events."""
+        self._fdm.place(self.start_ned_m, self.start_yaw_rad)
+        self._steps = 0
+        self._dt_carry_s = 0.0
+        self._armed = False
+        self._events: list[Contact] = []
+        self._touching: dict[str, float] = {}   # obstacle -> last time touched
+        self._pushing = False                   # a contact force is set in JSBSim
+        self._sample = self._fdm.sample()
+        self._controller.hold_here(self._sample)
+
+    @property
+    def t_s(self) -> float:
+        """Simulated seconds since the last reset."""
+        return self._steps / self.physics_hz
+
+    def set_armed(self, armed: bool) -> None:
+        """Arming spins the props at idle and holds where it is; disarming cuts the motors at once."""
+        armed = bool(armed)
+        if armed != self._armed:
+            self._controller.hold_here(self._sample)
+        self._armed = armed
+        if not armed:
+            self._fdm.set_throttles((0.0, 0.0, 0.0, 0.0))
+
+    def set_target(self, target: ControlTarget) -> None:
+        """Adopt a target; invalid parts are dropped or clamped, never raised (see ``sim_bridge.control``)."""
+        self._controller.set_target(target, self._sample)
+
+    @property
+    def target(self) -> ControlTarget:
+        """The target being flown, after sanitising."""
+        return self._controller.target
+
+    def pop_events(self) -> list[Contact]:
+        """Contacts since the last call, oldest first."""
+        events, self._events = self._events, []
+        return events
+
+    # ---- simulation ------------------------------------------------------------------------
+    def step(self, dt_s: float) -> None:
+        """Advance the simulation by ``dt_s`` seconds (rounded to whole physics steps, remainder carried)."""
+        if not (isinstance(dt_s, (int, float)) and math.isfinite(dt_s)) or dt_s <= 0.0:
+            return
+        physics_dt_s = 1.0 / self.physics_hz
+        total_s = dt_s + self._dt_carry_s
+        steps = int(total_s / physics_dt_s + 1e-9)
+        self._dt_carry_s = total_s - steps * physics_dt_s
+        for _ in range(steps):
+            self._physics_step(physics_dt_s)
+
+    def _physics_step(self, dt_s: float) -> None:
+        s = self._sample
+        on_ground = self._on_ground(s)
+        if self._armed:
+            self._fdm.set_throttles(self._controller.update(s, dt_s, on_ground))
+        if self._contacts is not None:
+            self._apply_contacts(s)
+        self._fdm.run_step()
+        self._steps += 1
+        self._sample = self._fdm.sample()
+
+    def _apply_contacts(self, s: FdmSample) -> None:
+        center = (s.north_m, s.east_m, s.down_m - GEAR_HEIGHT_M)
+        force, touching = self._contacts.force_ned_n(center, (s.vn_m_s, s.ve_m_s, s.vd_m_s))
+        if touching or self._pushing:
+            self._fdm.set_contact_force_ned_n(*force)
+            self._pushing = bool(touching)
+        now = self.t_s
+        for name in touching:
+            last = self._touching.get(name)
+            if last is None or now - last > self._contacts.params.event_repeat_s:
+                self._events.append(Contact(now, name, (s.north_m, s.east_m, s.down_m)))
+            self._touching[name] = now
+
+    def _on_ground(self, s: FdmSample) -> bool:
+        """Standing on the floor (gear), or resting on top of furniture (contact from below)."""
+        if s.vd_m_s <= -ON_GROUND_MAX_CLIMB_M_S:
+            return False
+        if s.gear_contacts >= ON_GROUND_MIN_GEAR_CONTACTS:
+            return True
+        return self._contacts is not None and self._contacts.supported and s.vd_m_s < ON_GROUND_MAX_CLIMB_M_S
+
+    @property
+    def state(self) -> RigidBodyState:
+        s = self._sample
+        return RigidBodyState(
+            t_s=self.t_s,
+            pos_ned_m=np.array([s.north_m, s.east_m, s.down_m]),
+            vel_ned_m_s=np.array([s.vn_m_s, s.ve_m_s, s.vd_m_s]),
+            roll_rad=s.roll_rad, pitch_rad=s.pitch_rad, yaw_rad=s.yaw_rad,
+            roll_rate_rad_s=s.p_rad_s, pitch_rate_rad_s=s.q_rad_s, yaw_rate_rad_s=s.r_rad_s,
+            on_ground=self._on_ground(s), armed=self._armed,
+            lat_deg=s.lat_deg, lon_deg=s.lon_deg, alt_amsl_m=self.home_alt_m - s.down_m,
+            throttle=self._fdm.mean_throttle,
+        )
+
+
+def _first(*values: float | None) -> float:
+    return next(float(v) for v in values if v is not None)
