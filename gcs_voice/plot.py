@@ -179,10 +179,21 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
                 xy = (pos[1] + off_e, pos[0] + off_n)
                 top.plot(*xy, "^", color=ACTION_COLOURS.get(mark.action, "k"), ms=7)
                 top.annotate(mark.action, xy, textcoords="offset points", xytext=(4, 4), fontsize=7)
+    zoomed = False
+    if tr.t_s and room is not None and room.bounds is not None:
+        # A big room (an open field) would shrink the track to a dot: frame the track instead.
+        b = room.bounds
+        span_track = max(max(east) - min(east), max(north) - min(north), 2.0)
+        if max(b.north_max_m - b.north_min_m, b.east_max_m - b.east_min_m) > 4 * span_track + 10:
+            half = 0.5 * span_track + 0.25 * span_track + 1.0
+            mid_e, mid_n = (max(east) + min(east)) / 2, (max(north) + min(north)) / 2
+            top.set_xlim(mid_e - half, mid_e + half)
+            top.set_ylim(mid_n - half, mid_n + half)
+            zoomed = True
     frame = "room" if room is not None else "local"
     top.set_xlabel(f"east (m, {frame})")
     top.set_ylabel(f"north (m, {frame})")
-    top.set_aspect("equal", adjustable="datalim")
+    top.set_aspect("equal", adjustable="box" if zoomed else "datalim")
     top.grid(alpha=0.3)
     top.legend(loc="best", fontsize=8)
     top.set_title(f"top view{' - room ' + room.name if room else ''}")
