@@ -1,0 +1,146 @@
+"""What every personality shares: clock, home, identity data, the outbox, and the hooks the server calls.
+
+A personality is the autopilot's *rules* (mode numbers, which commands are refused and how, what
+happens when setpoints stop); ``sim_bridge.vehicle`` is the flying. The server calls ``on_command``,
+``on_set_mode``, ``on_setpoint`` and ``update``; the personality answers through the ``Outbox``.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from importlib import resources
+from typing import Any, Protocol
+
+from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+from sim_bridge.params import ParamStore
+from sim_bridge.setpoints import FrameRules, SetpointRejected, decode_setpoint
+from sim_bridge.vehicle import Vehicle, VehicleEvent
+
+__all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data"]
+
+
+class Outbox(Protocol):
+    """The server side a personality talks to."""
+
+    def send(self, msg: Any, link: Any = None) -> None: ...
+    def text(self, severity: int, text: str) -> None: ...
+    def send_heartbeat_now(self) -> None: ...
+
+
+class CommandContext:
+    """One COMMAND_LONG / COMMAND_INT as the personality sees it (params 1-7, who sent it, where)."""
+
+    def __init__(self, command: int, params: tuple[float, ...], link: Any, src_system: int, src_component: int) -> None:
+        self.command = command
+        self.params = params
+        self.link = link
+        self.src_system = src_system
+        self.src_component = src_component
+        self.replies: list[Any] = []     # messages to send after the ACK (REQUEST_MESSAGE and the like)
+
+
+def load_personality_data(name: str) -> dict:
+    text = resources.files("sim_bridge").joinpath("data", f"autopilot_{name}.toml").read_text(encoding="utf-8")
+    return tomllib.loads(text)
+
+
+class Autopilot:
+    """Base personality. Subclasses set ``mav_autopilot``, ``frame_rules`` and the mode logic."""
+
+    name = "base"
+    mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
+    frame_rules: FrameRules
+
+    def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
+                 home: tuple[float, float, float], epoch_unix_s: float) -> None:
+        self.vehicle = vehicle
+        self.params = params
+        self.out = out
+        self.home = home
+        self.epoch_unix_s = epoch_unix_s
+        data = load_personality_data(self.name)
+        self.identity: dict = data["identity"]
+        self.boot_s = float(data["timing"]["boot_s"])
+        self.texts: dict = data["texts"]
+        self.streams: dict = data["streams"]
+        self.rejected_setpoints = 0
+        self.booted = False
+        params.on_change(lambda _name, _value: self.apply_params())
+        self.apply_params()
+
+    # ----------------------------------------------------------------- time
+    @property
+    def now_s(self) -> float:
+        return self.vehicle.time_s
+
+    def time_boot_ms(self) -> int:
+        return int(self.now_s * 1000) & 0xFFFFFFFF
+
+    def time_unix_usec(self) -> int:
+        return int((self.epoch_unix_s + self.now_s) * 1e6)
+
+    # ----------------------------------------------------------------- hooks
+    def apply_params(self) -> None:
+        """Push parameter values into the vehicle's limits and fence."""
+
+    def heartbeat_fields(self) -> tuple[int, int, int]:
+        raise NotImplementedError
+
+    def mode_name(self) -> str:
+        raise NotImplementedError
+
+    def armable(self) -> bool:
+        return self.booted and not self.vehicle.armed
+
+    def on_command(self, ctx: CommandContext) -> list[int]:
+        """Handle a command; return the MAV_RESULT of each COMMAND_ACK to send (in order, may be empty)."""
+        return [mavlink.MAV_RESULT_UNSUPPORTED]
+
+    def on_set_mode(self, msg: Any) -> list[int]:
+        """The SET_MODE message; returns the COMMAND_ACK results (for command 176) to send."""
+        return []
+
+    def on_setpoint(self, msg: Any) -> None:
+        raise NotImplementedError
+
+    def position_target(self) -> tuple | None:
+        """(type_mask, pos, vel, yaw, yaw_rate) for POSITION_TARGET_LOCAL_NED, or None."""
+        return None
+
+    def mission_items(self) -> list[Any]:
+        return []
+
+    def update(self, events: list[VehicleEvent]) -> None:
+        if not self.booted and self.now_s >= self.boot_s:
+            self.booted = True
+            for line in self.texts.get("boot", []):
+                self.out.text(mavlink.MAV_SEVERITY_INFO, line)
+
+    # ----------------------------------------------------------------- shared helpers
+    def decode(self, msg: Any, auto_yaw: bool):
+        """Setpoint from ``msg`` by this personality's frame rules, or None (counted) if rejected."""
+        state = self.vehicle.state
+        pos = (float(state.pos_ned_m[0]), float(state.pos_ned_m[1]), float(state.pos_ned_m[2]))
+        try:
+            return decode_setpoint(msg, self.frame_rules, float(state.yaw_rad), pos, self.now_s, auto_yaw)
+        except SetpointRejected as rejected:
+            self.rejected_setpoints += 1
+            self.on_rejected_setpoint(rejected)
+            return None
+
+    def on_rejected_setpoint(self, rejected: SetpointRejected) -> None:
+        """ArduCopter drops bad setpoints silently; PX4 says why."""
+
+    def velocity_position_target(self) -> tuple | None:
+        """POSITION_TARGET_LOCAL_NED content from the setpoint in use (velocity targets, yaw)."""
+        sp = self.vehicle.setpoint
+        if sp is None:
+            return None
+        mask = mavlink.POSITION_TARGET_TYPEMASK_X_IGNORE | mavlink.POSITION_TARGET_TYPEMASK_Y_IGNORE \
+            | mavlink.POSITION_TARGET_TYPEMASK_Z_IGNORE
+        yaw = sp.yaw_rad if sp.yaw_rad is not None else float(self.vehicle.state.yaw_rad)
+        yaw_rate = sp.yaw_rate_rad_s if sp.yaw_rate_rad_s is not None else 0.0
+        pos = tuple(v if v is not None else math.nan for v in sp.pos_ned_m)
+        return mask, pos, sp.vel_ned_m_s, yaw, yaw_rate
