@@ -120,6 +120,27 @@ def commands_from_session_log(path: str | Path) -> list[CommandMark]:
     return marks
 
 
+def link_losses_from_session_log(path: str | Path) -> list[tuple[float, float | None]]:
+    """(lost, back) UNIX times of each link loss in a session log; back is None if it never returned."""
+    spans: list[tuple[float, float | None]] = []
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return spans
+    for line in lines:
+        try:
+            event = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if not isinstance(event, dict) or event.get("kind") != "link":
+            continue
+        if event.get("state") == "lost":
+            spans.append((float(event["t"]), None))
+        elif event.get("state") == "restored" and spans and spans[-1][1] is None:
+            spans[-1] = (spans[-1][0], float(event["t"]))
+    return spans
+
+
 def commands_from_setpoints(flight: Flight) -> list[CommandMark]:
     """One mark per change of setpoint, named by ``setpoint_action`` (no session log available)."""
     marks: list[CommandMark] = []
@@ -220,6 +241,12 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
             ax.axvline(mark.t_s - t0, color=colour, lw=0.8, ls="--", alpha=0.7)
         alt.annotate(mark.action, (mark.t_s - t0, 1.0), xycoords=("data", "axes fraction"), rotation=90,
                      va="top", ha="right", fontsize=7, color=colour)
+    t_end = max(tr.t_s[-1] if tr.t_s else t0, flight.heading_t_s[-1] if flight.heading_t_s else t0)
+    for i, (lost, back) in enumerate(link_losses_from_session_log(session_log) if session_log else []):
+        for ax in (alt, hdg):
+            ax.axvspan(lost - t0, (back or t_end) - t0, color="red", alpha=0.12,
+                       label="link lost" if i == 0 and ax is alt else None)
+        alt.legend(loc="lower right", fontsize=8)
     source = "session log" if session_log else "setpoints in the tlog"
     fig.suptitle(title or f"{Path(tlog).name} (commands from the {source})", fontsize=11)
     fig.tight_layout()
