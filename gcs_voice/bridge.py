@@ -162,8 +162,14 @@ class Bridge:
             return self._refuse(request, "unknown action")
         if self._busy and action != "stop":
             return self._refuse(request, f"busy: {self._busy} in progress (only stop is taken)")
-        if not state.armed and action != "stop":
-            return self._refuse(request, "vehicle is not armed: say 'take off' first")
+        if not state.armed:
+            return self._refuse(request, "vehicle is not armed: say 'take off' first" if action != "stop"
+                                else "vehicle is not armed: nothing to stop")
+        velocity_mode = state.profile.velocity_mode if state.profile else None
+        if velocity_mode and state.mode != velocity_mode and not self._busy:
+            # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
+            return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
+                                         "say 'take off' to fly by voice again")
         mapped = self.mapper.apply(action, state)
         if not self.link.streaming:
             self.link.start_stream(self.mapper.setpoint)
