@@ -1,0 +1,175 @@
+"""PocketSphinx 5 (CMU US English model inside its wheel): needs nothing but pip.
+
+Grammar mode decodes a JSGF grammar ``<command> | <garbage> [<garbage>] [<garbage>]``: the command
+branch lists the dictionary phrases, the garbage branch a few short common words (``engines.toml``),
+so out-of-domain speech is absorbed by garbage instead of being forced into the nearest command.
+When garbage wins the recognition has no hypotheses and ``extra["out_of_grammar"] = 1``. Free mode
+decodes with the bundled n-gram language model. Confidence = the smallest word posterior of the best
+path (lattice posterior; 1 = no competing path). English only.
+"""
+
+from __future__ import annotations
+
+import logging
+from collections.abc import Sequence
+
+from gcs_voice.asr.base import SAMPLE_RATE, Hypothesis, Recognition
+from gcs_voice.asr.models import sphinx_model_dir
+from gcs_voice.asr.settings import engine_settings
+from gcs_voice.dictionary import Dictionary
+from gcs_voice.errors import ModelError
+from gcs_voice.text import normalize_text
+
+__all__ = ["SphinxRecognizer", "SphinxStream"]
+
+log = logging.getLogger(__name__)
+LANGUAGES = ("en",)
+#: Frames per second of PocketSphinx's default front end (10 ms shift).
+FRAMES_PER_S = 100
+
+
+def _jsgf_token(word: str) -> str:
+    return word if word.replace("'", "").isalnum() else f'"{word}"'
+
+
+class SphinxRecognizer:
+    """One PocketSphinx decoder with a grammar search (and a free search in free mode)."""
+
+    name = "sphinx"
+    languages = LANGUAGES
+
+    def __init__(self, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
+        others = sorted({d.language for d in dictionaries} - set(LANGUAGES))
+        if others:
+            raise ModelError(f"the sphinx engine recognises English only, not {', '.join(others)}: "
+                             f"use --engine vosk or --engine whisper for that language")
+        from pocketsphinx import Config, Decoder
+
+        self.mode = mode
+        self.settings = engine_settings("sphinx")
+        model_dir = sphinx_model_dir(model)
+        config = Config(hmm=str(model_dir / "en-us"), dict=str(model_dir / "cmudict-en-us.dict"),
+                        lm=None, loglevel="FATAL")
+        try:
+            self.decoder = Decoder(config)
+        except Exception as exc:  # pocketsphinx raises RuntimeError with no detail
+            raise ModelError(f"cannot load the PocketSphinx model in {model_dir}: {exc}") from None
+        self.phrases = [normalize_text(p.text, fold=False) for d in dictionaries for p in d.phrases]
+        self.missing_words = tuple(sorted({w for p in self.phrases for w in p.split()
+                                           if self.decoder.lookup_word(w) is None}))
+        if self.missing_words:
+            log.warning("sphinx: dictionary words missing from the pronunciation dictionary "
+                        "(phrases with them cannot be recognised): %s", ", ".join(self.missing_words))
+        if mode == "free":
+            lm = model_dir / "en-us.lm.bin"
+            if not lm.is_file():
+                raise ModelError(f"free decoding needs {lm}")
+            self.decoder.add_lm_file("free", str(lm))
+            self.search = "free"
+        else:
+            self.decoder.add_jsgf_string("grammar", self._grammar())
+            self.search = "grammar"
+        self.decoder.activate_search(self.search)
+        self._open: SphinxStream | None = None
+
+    @classmethod
+    def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
+        return cls(dictionaries, model=model, mode=mode)
+
+    def _grammar(self) -> str:
+        vocabulary = {w for p in self.phrases for w in p.split()}
+        usable = [p for p in dict.fromkeys(self.phrases) if not set(p.split()) & set(self.missing_words)]
+        if not usable:
+            raise ModelError("sphinx: no dictionary phrase can be pronounced with the English model")
+        self.garbage = tuple(w for w in self.settings["garbage_words"]
+                             if w not in vocabulary and self.decoder.lookup_word(w) is not None)
+        commands = " | ".join(" ".join(_jsgf_token(w) for w in p.split()) for p in usable)
+        lines = ["#JSGF V1.0;", "grammar gcsvoice;", f"<command> = {commands};"]
+        if self.garbage:
+            n = max(1, int(self.settings.get("garbage_max_words", 3)))
+            weight = float(self.settings.get("garbage_weight", 0.001))
+            lines.append(f"<garbage> = {' | '.join(self.garbage)};")
+            loop = " ".join(["<garbage>"] + ["[<garbage>]"] * (n - 1))
+            lines.append(f"public <utterance> = /1.0/ <command> | /{weight:g}/ {loop};")
+        else:
+            lines.append("public <utterance> = <command>;")
+        return "\n".join(lines) + "\n"
+
+    def start_stream(self, lang: str | None = None) -> SphinxStream:
+        if lang not in (None, "en"):
+            raise ModelError(f"the sphinx engine recognises English only, not {lang!r}")
+        if self._open is not None:
+            self._open.abandon()
+        self._open = SphinxStream(self)
+        return self._open
+
+
+class SphinxStream:
+    """One utterance. PCM is buffered and decoded at ``finish`` as one whole utterance, because
+    PocketSphinx's live cepstral-mean normalisation misrecognises the first second of a stream
+    (measured: "go up", "turn left" lost to garbage when streamed, found when decoded whole)."""
+
+    def __init__(self, recognizer: SphinxRecognizer):
+        self._rec = recognizer
+        self._pcm = bytearray()
+        self._done = False
+
+    def accept(self, pcm: bytes) -> None:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        self._pcm += pcm
+
+    def abandon(self) -> None:
+        self._done = True
+
+    def finish(self) -> Recognition:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        rec, decoder = self._rec, self._rec.decoder
+        self._done = True
+        rec._open = None
+        audio_s = len(self._pcm) / 2 / SAMPLE_RATE
+        decoder.start_utt()
+        if len(self._pcm) >= 2:
+            decoder.process_raw(bytes(self._pcm[: len(self._pcm) // 2 * 2]), False, True)
+        decoder.end_utt()
+        hyp = decoder.hyp()
+        words = [s for s in decoder.seg() if not s.word.startswith(("<", "["))] if hyp else []
+        text = " ".join(_base_word(s.word) for s in words)
+        extra: dict[str, float] = {"frames": float(decoder.n_frames())}
+        if not text:
+            return Recognition((), rec.name, "en", audio_s, extra)
+        posterior = min(1.0, max(0.0, min(float(s.prob) for s in words)))
+        extra["posterior"] = posterior
+        if rec.search == "grammar" and set(text.split()) & set(rec.garbage):
+            extra["out_of_grammar"] = 1.0
+            return Recognition((), rec.name, "en", audio_s, extra)
+        extra["out_of_grammar"] = 0.0
+        hypotheses = [Hypothesis(text, confidence=posterior, score=float(hyp.score))]
+        limit = int(rec.settings.get("max_alternatives", 5))
+        for alt in _nbest(decoder, limit * 4):
+            alt_text = " ".join(_base_word(w) for w in alt.hypstr.split() if not w.startswith(("<", "[")))
+            if rec.search == "grammar" and set(alt_text.split()) & set(rec.garbage):
+                continue
+            if alt_text and all(h.text != alt_text for h in hypotheses):
+                hypotheses.append(Hypothesis(alt_text, confidence=None, score=float(alt.score)))
+            if len(hypotheses) >= limit:
+                break
+        return Recognition(tuple(hypotheses), rec.name, "en", audio_s, extra)
+
+
+def _base_word(word: str) -> str:
+    """``right(2)`` (an alternative pronunciation) -> ``right``."""
+    return word.split("(", 1)[0]
+
+
+def _nbest(decoder, limit: int):
+    out = []
+    try:
+        for i, item in enumerate(decoder.nbest()):
+            if i >= limit or item is None:
+                break
+            out.append(item)
+    except (AttributeError, RuntimeError):  # no lattice for this utterance
+        pass
+    return out
