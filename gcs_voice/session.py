@@ -67,7 +67,7 @@ def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: s
     else:
         dictionaries = [load_language(code) for code in (("en", "es") if lang == "auto" else (lang,))]
     stream_lang = None if lang == "auto" else lang
-    engine_name = engine or default_engine(None if lang == "auto" else lang)
+    engine_name = engine or default_engine(lang)
     recognizer = load_recognizer(engine_name, dictionaries, model=model)
     matcher = get_matcher(matcher_name or DEFAULT_MATCHER)
     return recognizer, matcher, dictionaries, stream_lang
