@@ -36,25 +36,9 @@ class ScriptStep:
 
 def read_utterance(path: str | Path) -> bytes:
     """16 kHz mono int16 PCM of a WAV file (through gcs_voice.audio, which converts and validates)."""
-    try:
-        from gcs_voice.audio import read_wav_pcm
-    except ImportError:  # until gcs_voice.audio is merged: plain 16 kHz mono 16-bit WAV only
-        return _read_plain_wav(Path(path))
-    return read_wav_pcm(path)
+    from gcs_voice.audio import read_wav
 
-
-def _read_plain_wav(path: Path) -> bytes:
-    import wave
-
-    from gcs_voice.errors import AudioError
-
-    try:
-        with wave.open(str(path), "rb") as w:
-            if (w.getframerate(), w.getnchannels(), w.getsampwidth()) != (16_000, 1, 2):
-                raise AudioError(f"{path}: need 16 kHz mono 16-bit WAV")
-            return w.readframes(w.getnframes())
-    except (OSError, EOFError, wave.Error) as exc:
-        raise AudioError(f"{path}: not a readable WAV file ({exc})") from None
+    return read_wav(path)
 
 
 class VoicePipeline:
