@@ -113,7 +113,8 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
         steps = load_sequence(lang)
         print(f"demo: flying the {lang} sequence with {getattr(voice[0], 'name', '?')} "
               f"(simulator: {autopilot}, room {room}, speed-up {speedup:g})")
-        script = [ScriptStep(s.path, s.hold_s / speedup) for s in steps]
+        script = [ScriptStep(s.path, s.hold_s / speedup, s.expect if s.expect in ("take_off", "land") else None)
+                  for s in steps]
         stem = f"demo-{lang}"
         for suffix in (".tlog", ".jsonl"):
             (out_dir / f"{stem}{suffix}").unlink(missing_ok=True)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-DEFAULT_SPEEDUP = 2.0
+DEFAULT_SPEEDUP = 1.0
 DEFAULT_ROOM = "living_room"
 
 
