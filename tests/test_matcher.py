@@ -11,6 +11,7 @@ from gcs_voice.matcher import DEFAULT_MATCHER, MATCHERS, Matcher, get_matcher
 from gcs_voice.matcher.levenshtein import levenshtein_distance
 from gcs_voice.matcher.thresholds import matcher_thresholds
 
+ALL = ["exact", "levenshtein", "phonetic"]
 EN = load_language("en")
 ES = load_language("es")
 
@@ -20,7 +21,7 @@ def heard(*texts: str, engine: str = "text", lang: str | None = None, **extra: f
 
 
 def test_registry_is_lazy_and_complete() -> None:
-    assert {"exact", "levenshtein"} <= set(MATCHERS)
+    assert set(ALL) <= set(MATCHERS)
     assert DEFAULT_MATCHER in MATCHERS
     for name in MATCHERS:
         m = get_matcher(name)
@@ -40,7 +41,7 @@ def test_paper_worked_examples() -> None:
     assert levenshtein_distance("go right", "go left") == 4
 
 
-@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize("name", ALL)
 @pytest.mark.parametrize(
     ("text", "action", "dictionary"),
     [
@@ -69,7 +70,7 @@ def test_levenshtein_tolerates_small_misrecognitions() -> None:
     assert get_matcher("exact").decide(heard("to the left"), [EN]).action is None
 
 
-@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize("name", ALL)
 @pytest.mark.parametrize(
     "text",
     ["I'm going home", "the right answer", "turn the page", "hello there", "what time is it",
@@ -93,7 +94,7 @@ def test_paper_mode_always_acts() -> None:
     assert d.action is not None
 
 
-@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize("name", ALL)
 def test_nothing_heard(name: str) -> None:
     m = get_matcher(name)
     for rec in (heard(), heard(""), heard("  ...  ")):
@@ -117,7 +118,7 @@ STEALING_PAIRS_ES = [
 ]
 
 
-@pytest.mark.parametrize("name", ["exact", "levenshtein"])
+@pytest.mark.parametrize("name", ALL)
 def test_no_stealing_between_near_classes(name: str) -> None:
     m = get_matcher(name)
     for pairs, dictionary in ((STEALING_PAIRS, EN), (STEALING_PAIRS_ES, ES)):
@@ -168,3 +169,17 @@ def test_low_engine_confidence_is_rejected() -> None:
     rec = Recognition(hypotheses=(Hypothesis("go right", confidence=0.2),), engine="x")
     assert get_matcher("levenshtein", min_confidence=0.5).decide(rec, [EN]).action is None
     assert get_matcher("levenshtein").decide(rec, [EN]).action == "go_right"
+
+
+def test_phonetic_hears_homophones_that_characters_miss() -> None:
+    m = get_matcher("phonetic")
+    assert m.decide(heard("go rite"), [EN]).action == "go_right"
+    assert m.decide(heard("turn write"), [EN]).action == "turn_right"
+    assert m.decide(heard("Op!"), [EN]).action == "up"
+    assert m.decide(heard("vaja"), [ES]).action == "down"
+    assert get_matcher("levenshtein").decide(heard("turn write"), [EN]).action is None
+
+
+def test_phonetic_uses_every_alternative() -> None:
+    d = get_matcher("phonetic").decide(heard("hello there", "go right"), [EN])
+    assert d.action == "go_right" and "alternative #2" in d.reason

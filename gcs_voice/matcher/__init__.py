@@ -18,6 +18,7 @@ __all__ = ["MATCHERS", "DEFAULT_MATCHER", "Matcher", "get_matcher", "UnknownMatc
 MATCHERS: dict[str, str] = {
     "exact": "gcs_voice.matcher.exact:ExactMatcher",
     "levenshtein": "gcs_voice.matcher.levenshtein:LevenshteinMatcher",
+    "phonetic": "gcs_voice.matcher.phonetic:PhoneticMatcher",
 }
 
 #: The matcher used when none is named (chosen by tools/bench_accuracy.py, see docs/bench/accuracy.md).

@@ -20,7 +20,7 @@ from gcs_voice.errors import GcsVoiceError
 from gcs_voice.matcher.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds
 from gcs_voice.text import normalize_text
 
-__all__ = ["Matcher", "Candidate", "MatcherOptionError"]
+__all__ = ["Matcher", "Candidate", "Ranking", "MatcherOptionError"]
 
 #: Options every matcher understands (all numbers; ``reject`` is 0/1 or a bool).
 KNOWN_OPTIONS = (
@@ -47,6 +47,15 @@ class Candidate:
     heard: str
     rank: int
     text: str
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """Nearest phrase, nearest phrase of another class, and an early rejection reason (or "")."""
+
+    best: Candidate | None
+    rival: Candidate | None
+    reason: str = ""
 
 
 class Matcher:
@@ -88,54 +97,15 @@ class Matcher:
 
     def decide(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> Decision:
         """Nearest phrase over all dictionaries and alternatives, or no action with the reason."""
-        if not dictionaries:
-            raise ValueError("decide() needs at least one dictionary")
         limits = self.thresholds(recognition.engine)
         rejecting = limits["reject"] != 0.0
-        best_text = recognition.text
-
-        heard = [
-            (rank, h.text, normalize_text(h.text))
-            for rank, h in enumerate(recognition.hypotheses[: max(1, int(limits["alternatives"]))])
-        ]
-        heard = [item for item in heard if item[2]]
-        if not heard:
-            return self._reject(best_text, "nothing heard")
-
-        if rejecting:
-            reason = self._evidence_reason(recognition)
-            if reason:
-                return self._reject(best_text, reason)
-            conf = recognition.best.confidence if recognition.best else None
-            if conf is not None and conf < limits["min_confidence"]:
-                return self._reject(
-                    best_text, f"unsure of '{best_text}' (confidence {conf:.2f} < {limits['min_confidence']:.2f})"
-                )
-
-        self.prepare(dictionaries)
-        candidates: list[Candidate] = []
-        for rank, text, norm in heard:
-            for dictionary in dictionaries:
-                key = dictionary.strip_skip_words(norm)
-                if not key:
-                    continue
-                penalty = rank * limits["alt_penalty"]
-                for phrase in dictionary.phrases:
-                    d = min(1.0, self.distance(key, phrase, dictionary) + penalty)
-                    candidates.append(Candidate(d, phrase, dictionary, key, rank, text))
-        if not candidates:
-            return self._reject(best_text, f"only filler words heard ('{heard[0][1]}')")
-
-        wanted_lang = recognition.lang
-        order = {id(c): i for i, c in enumerate(candidates)}
-        candidates.sort(
-            key=lambda c: (c.distance, c.dictionary.language != wanted_lang, c.rank, order[id(c)])
-        )
-        best = candidates[0]
-        rival = next((c for c in candidates if c.phrase.action != best.phrase.action), None)
+        ranked = self.rank(recognition, dictionaries, limits)
+        if ranked.reason and (rejecting or ranked.best is None):
+            return self._reject(recognition.text, ranked.reason)
+        best, rival = ranked.best, ranked.rival
+        assert best is not None
         lang = best.dictionary.language
         score = max(0.0, min(1.0, 1.0 - best.distance))
-
         if rejecting and best.distance > limits["max_distance"]:
             return self._reject(
                 best.text, self.not_a_command_reason(best, limits["max_distance"]), best.phrase.text, lang, score
@@ -158,6 +128,53 @@ class Matcher:
             reason="" if best.rank == 0 else f"matched alternative #{best.rank + 1} '{best.text}'",
             matcher=self.name,
         )
+
+    def rank(
+        self, recognition: Recognition, dictionaries: Sequence[Dictionary], limits: dict[str, float] | None = None
+    ) -> Ranking:
+        """The nearest phrase and the nearest phrase of another class, before any distance threshold.
+
+        ``reason`` is set when the utterance is rejected before matching (nothing heard, engine
+        evidence, low confidence); ``best`` is then still filled when there was text to match.
+        """
+        if not dictionaries:
+            raise ValueError("decide() needs at least one dictionary")
+        limits = limits or self.thresholds(recognition.engine)
+        heard = [
+            (rank, h.text, normalize_text(h.text))
+            for rank, h in enumerate(recognition.hypotheses[: max(1, int(limits["alternatives"]))])
+        ]
+        heard = [item for item in heard if item[2]]
+        if not heard:
+            return Ranking(None, None, "nothing heard")
+        reason = self._evidence_reason(recognition)
+        conf = recognition.best.confidence if recognition.best else None
+        if not reason and conf is not None and conf < limits["min_confidence"]:
+            text = recognition.text
+            reason = f"unsure of '{text}' (confidence {conf:.2f} < {limits['min_confidence']:.2f})"
+
+        self.prepare(dictionaries)
+        candidates: list[Candidate] = []
+        for rank, text, norm in heard:
+            for dictionary in dictionaries:
+                key = dictionary.strip_skip_words(norm)
+                if not key:
+                    continue
+                penalty = rank * limits["alt_penalty"]
+                for phrase in dictionary.phrases:
+                    d = min(1.0, self.distance(key, phrase, dictionary) + penalty)
+                    candidates.append(Candidate(d, phrase, dictionary, key, rank, text))
+        if not candidates:
+            return Ranking(None, None, reason or f"only filler words heard ('{heard[0][1]}')")
+
+        wanted_lang = recognition.lang
+        order = {id(c): i for i, c in enumerate(candidates)}
+        candidates.sort(
+            key=lambda c: (c.distance, c.dictionary.language != wanted_lang, c.rank, order[id(c)])
+        )
+        best = candidates[0]
+        rival = next((c for c in candidates if c.phrase.action != best.phrase.action), None)
+        return Ranking(best, rival, reason)
 
     # -- reasons ---------------------------------------------------------------------------------
     def not_a_command_reason(self, best: Candidate, max_distance: float) -> str:

@@ -1,0 +1,188 @@
+"""Tables, confusion matrices and threshold sweeps for tools/bench_accuracy.py (report / tune stages)."""
+
+from __future__ import annotations
+
+import itertools
+import math
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from bench_accuracy import (
+    BEGIN, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, load_cache, recognition, score,
+)
+from gcs_voice.dictionary import MOTION_ACTIONS, load_language
+from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
+
+LANGS = ("en", "es")
+REPORT_SPLITS = ("test", "real")  # thresholds are tuned on "dev" and the real voices
+
+
+def _cell(s: Score) -> str:
+    if not s.n_cmd:
+        return "–"
+    return f"**{s.pct('right'):.1f}** / {s.pct('wrong'):.1f} / {s.pct('rejected'):.1f} (n={s.n_cmd})"
+
+
+def _fa(s: Score) -> str:
+    return f"{s.pct('false_accept'):.1f} ({s.false_accept}/{s.n_ood})" if s.n_ood else "–"
+
+
+def _z(x: float) -> float:
+    return 0.0 if math.isnan(x) else x
+
+
+def _pcts(values: Sequence[float]) -> str:
+    return f"{np.percentile(values, 50) * 1000:.0f} / {np.percentile(values, 95) * 1000:.0f}" if values else "–"
+
+
+def confusion_png(path: Path, panels: list[tuple[str, list[Item], dict[str, str]]]) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = list(MOTION_ACTIONS) + ["none"]
+    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.6), squeeze=False)
+    for ax, (title, items, decided) in zip(axes[0], panels):
+        m = np.zeros((len(labels), len(labels)), dtype=int)
+        for it in items:
+            if it.key in decided:
+                m[labels.index(it.truth), labels.index(decided[it.key])] += 1
+        ax.imshow(m, cmap="Blues")
+        for i in range(len(labels)):
+            for j in range(len(labels)):
+                if m[i, j]:
+                    ax.text(j, i, str(m[i, j]), ha="center", va="center", fontsize=7,
+                            color="white" if m[i, j] > m.max() / 2 else "black")
+        ax.set_xticks(range(len(labels)), labels, rotation=90, fontsize=7)
+        ax.set_yticks(range(len(labels)), labels, fontsize=7)
+        ax.set_xlabel("decided (none = no action)", fontsize=8)
+        ax.set_ylabel("said", fontsize=8)
+        ax.set_title(title, fontsize=9)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
+    dictionaries = {lang: load_language(lang) for lang in LANGS}
+    lines: list[str] = []
+    items = [it for it in items if it.split in REPORT_SPLITS]
+    summary: list[str] = []
+    for engine in engines:
+        cache = load_cache(engine)
+        if not cache:
+            lines += [f"### {engine}", "", "Not run (no cached recognitions).", ""]
+            continue
+        cached = [it for it in items if it.key in cache]
+        decided = {m: decide_all(engine, m, cached, cache, dictionaries) for m in matchers}
+        decided["levenshtein, no rejection (paper)"] = decide_all(
+            engine, "levenshtein", cached, cache, dictionaries, reject=0)
+        decided[f"{DEFAULT_MATCHER}, --lang auto"] = decide_all(
+            engine, DEFAULT_MATCHER, cached, cache, dictionaries, auto=True)
+        langs = [lang for lang in LANGS if any(it.lang == lang and it.split == "test" for it in cached)]
+        lines += [f"### {engine}", ""]
+        lines += ["Commands: **accuracy** / wrong class / rejected, % of commands (test split). "
+                  "OOD: out-of-domain utterances acted on, % (all noises).", ""]
+        for noises, title in ((PAPER_NOISES, "paper's noise (uniform on [-1, 1])"),
+                              (MIXED_NOISES, "babble and propeller hum, SNR in dB")):
+            for lang in langs:
+                lines.append(f"{lang}, {title}:")
+                lines.append("")
+                lines.append("| matcher | " + " | ".join(noises) + " | OOD false accepts |")
+                lines.append("|---" * (len(noises) + 2) + "|")
+                for m, dec in decided.items():
+                    cells = [_cell(score(cached, dec, lang=lang, noise=n, split="test")) for n in noises]
+                    fa_n = Score()
+                    for it in cached:
+                        if it.lang == lang and it.split == "test" and it.noise in noises and it.key in dec:
+                            fa_n.add(it.truth, dec[it.key])
+                    lines.append(f"| {m} | " + " | ".join(cells) + f" | {_fa(fa_n)} |")
+                lines.append("")
+        real = [it for it in cached if it.split == "real"]
+        if real:
+            lines += ["Real voices (../shared/speech, 75 commands of 5 classes + 20 non-command words; "
+                      "development set, too small for fine claims):", "",
+                      "| matcher | commands right | wrong class | rejected | non-command words acted on |",
+                      "|---|---|---|---|---|"]
+            for m, dec in decided.items():
+                s = score(real, dec)
+                lines.append(f"| {m} | {s.right}/{s.n_cmd} ({s.pct('right'):.1f} %) | {s.wrong} | {s.rejected} "
+                             f"| {s.false_accept}/{s.n_ood} |")
+            lines.append("")
+        lat = [cache[it.key]["latency_s"] for it in cached]
+        rtf = [cache[it.key]["busy_s"] / cache[it.key]["audio_s"] for it in cached if cache[it.key]["audio_s"]]
+        summary.append(f"| {engine} | {len(cached)} | {_pcts(lat)} | {np.mean(rtf) if rtf else math.nan:.2f} |")
+        png = IMG / f"accuracy_confusion_{engine}.png"
+        panels = []
+        for lang in langs:
+            for noise in ("raw", "u0.15", "babble10"):
+                sel = [it for it in cached if it.lang == lang and it.noise == noise and it.split == "test"]
+                panels.append((f"{engine} + {DEFAULT_MATCHER}: {lang} {noise}", sel, decided[DEFAULT_MATCHER]))
+        if real:
+            panels.append((f"{engine} + {DEFAULT_MATCHER}: real voices", real, decided[DEFAULT_MATCHER]))
+        if panels:
+            confusion_png(png, panels)
+            lines += [f"![confusion {engine}](img/{png.name})", ""]
+    lines = ["## Timing", "",
+             "Latency = time from the end of the audio to the decision input being ready (WAV streamed in "
+             "100 ms chunks, engine backlog simulated as if live; end-of-speech detection not included). "
+             "RTF = engine busy time / audio duration. Both measured on this 2-core machine shared with "
+             "other jobs, under `nice`.", "",
+             "| engine | utterances | latency p50 / p95 (ms) | RTF |", "|---|---|---|---|", *summary, "",
+             "## Results per engine", "", *lines]
+    text = DOC.read_text(encoding="utf-8") if DOC.is_file() else f"# Accuracy\n\n{BEGIN}\n{END}\n"
+    head, _, rest = text.partition(BEGIN)
+    _, _, tail = rest.partition(END)
+    DOC.parent.mkdir(parents=True, exist_ok=True)
+    DOC.write_text(head + BEGIN + "\n" + "\n".join(lines) + "\n" + END + tail, encoding="utf-8")
+    print(f"wrote {DOC}")
+
+
+def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
+    """Sweep max_distance x min_margin on the dev split + real voices; print the best settings."""
+    dictionaries = {lang: load_language(lang) for lang in LANGS}
+    items = [it for it in items if it.split in ("dev", "real")]
+    for engine in engines:
+        cache = load_cache(engine)
+        cached = [it for it in items if it.key in cache]
+        if not cached:
+            continue
+        for m in matchers:
+            matcher = get_matcher(m)
+            ranked = []
+            for it in cached:
+                rec = recognition(engine, cache[it.key])
+                r = matcher.rank(rec, [dictionaries[it.lang]], {**matcher.thresholds(engine), "min_confidence": 0.0})
+                conf = rec.best.confidence if rec.best and rec.best.confidence is not None else 1.0
+                ranked.append((it, r, conf))
+            has_conf = any(c < 1.0 for _, _, c in ranked)
+            rows = []
+            for max_d, margin, min_conf in itertools.product(
+                np.arange(0.0, 0.71, 0.05), (0.0, 0.05, 0.1, 0.15, 0.2),
+                (0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7) if has_conf else (0.0,),
+            ):
+                dev, real = Score(), Score()
+                for it, r, conf in ranked:
+                    got = "none"
+                    if (r.best is not None and not r.reason and r.best.distance <= max_d + 1e-9
+                            and conf >= min_conf):
+                        gap = math.inf if r.rival is None else r.rival.distance - r.best.distance
+                        if gap >= margin:
+                            got = r.best.phrase.action
+                    (real if it.split == "real" else dev).add(it.truth, got)
+                ok = not dev.pct("false_accept") > 2.0 and real.false_accept <= 1
+                objective = (_z(dev.pct("right")) + _z(real.pct("right"))
+                             - 3 * (_z(dev.pct("wrong")) + _z(real.pct("wrong")))
+                             - 2 * (_z(dev.pct("false_accept")) + _z(real.pct("false_accept"))))
+                rows.append((ok, objective, max_d, margin, min_conf, dev, real))
+            rows.sort(key=lambda r: (not r[0], -r[1]))
+            print(f"\n{engine} + {m}: (meets FA limits?) max_distance min_margin min_confidence | "
+                  f"dev right/wrong/rej FA | real right/wrong/rej acted-on-non-command")
+            for ok, obj, max_d, margin, min_conf, dev, real in rows[:8]:
+                print(f"  {'ok ' if ok else 'no '} {max_d:.2f} {margin:.2f} {min_conf:.1f} | {dev.pct('right'):5.1f} "
+                      f"{dev.pct('wrong'):5.1f} {dev.pct('rejected'):5.1f} {dev.pct('false_accept'):5.1f} | "
+                      f"{real.right}/{real.wrong}/{real.rejected} {real.false_accept}/{real.n_ood}  obj {obj:.1f}")

@@ -1,0 +1,244 @@
+"""Synthesise the paper's test protocol with espeak-ng and sox: commands, out-of-domain speech, noise.
+
+Per language (en, es): 9 classes x N takes (the dictionary's phrases in turn, voices, speeds and
+pitches varied; English is also read by Spanish voices, as the paper's speakers were Spanish), plus
+the out-of-domain sentences of ``tools/corpus_sentences.toml`` (right answer: no action). Every
+utterance is written clean ("raw"), with the paper's additive uniform noise U(-0.05, 0.05) and
+U(-0.15, 0.15) on the [-1, 1] signal, and mixed with babble (several espeak talkers) and a propeller
+hum (sox harmonics + brown noise with tremolo) at 20, 10 and 5 dB SNR. Output: 16 kHz mono 16-bit
+WAVs and ``manifest.tsv``. Deterministic for a given ``--seed``.
+
+    python tools/make_corpus.py --out corpus --seed 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import subprocess
+import sys
+import time
+import tomllib
+import wave
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+REPO = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(REPO))
+
+from gcs_voice.dictionary import MOTION_ACTIONS, load_language  # noqa: E402
+
+SAMPLE_RATE = 16_000
+SENTENCES_PATH = Path(__file__).resolve().parent / "corpus_sentences.toml"
+#: Speech is normalised to this peak before noise is added (the paper's noise is relative to [-1, 1]).
+SPEECH_PEAK = 0.8
+LEAD_SILENCE_S, TRAIL_SILENCE_S = 0.25, 0.35
+#: espeak-ng voices (language+variant) per corpus language; "es+..." reading English = Spanish accent.
+VOICES: dict[str, tuple[str, ...]] = {
+    "en": ("en-us+m3", "en-us+f2", "en+m1", "es+m3", "en-gb-scotland+f4", "en-us+m7", "es-419+f2",
+           "en+m5"),
+    "es": ("es+m3", "es+f2", "es-419+m1", "es-419+f4", "es+m7", "es+f5", "es-419+m5", "es+m2"),
+}
+SPEED_WPM = (130, 195)
+PITCH = (25, 75)
+#: (noise label, SNR dB or None) in manifest order.
+NOISES: tuple[tuple[str, float | None], ...] = (
+    ("raw", None), ("u0.05", None), ("u0.15", None),
+    ("babble", 20.0), ("babble", 10.0), ("babble", 5.0),
+    ("hum", 20.0), ("hum", 10.0), ("hum", 5.0),
+)
+MANIFEST_COLUMNS = ("path", "lang", "class", "noise", "snr", "voice", "text", "split", "utt")
+
+
+@dataclass(frozen=True)
+class Utterance:
+    utt: str
+    lang: str
+    action: str  # class id or "none"
+    text: str
+    voice: str
+    speed_wpm: int
+    pitch: int
+    split: str
+
+
+def synthesise(text: str, voice: str, speed_wpm: int = 160, pitch: int = 50) -> np.ndarray:
+    """espeak-ng -> sox resample -> float32 samples at 16 kHz in [-1, 1]."""
+    speak = subprocess.run(
+        ["espeak-ng", "-v", voice, "-s", str(speed_wpm), "-p", str(pitch), "--stdout", text],
+        check=True, capture_output=True,
+    )
+    raw = subprocess.run(
+        ["sox", "-R", "-D", "-V1", "-t", "wav", "-", "-t", "raw", "-r", str(SAMPLE_RATE), "-e", "signed", "-b", "16",
+         "-c", "1", "-"],
+        input=speak.stdout, check=True, capture_output=True,
+    )
+    return np.frombuffer(raw.stdout, dtype="<i2").astype(np.float32) / 32768.0
+
+
+def propeller_hum(seconds: float) -> np.ndarray:
+    """A multirotor-like hum: blade-pass harmonics + brown noise, amplitude-modulated (sox synth, -R)."""
+    raw = subprocess.run(
+        ["sox", "-R", "-V1", "-n", "-t", "raw", "-r", str(SAMPLE_RATE), "-e", "signed", "-b", "16", "-c", "5",
+         "-", "synth", f"{seconds:.2f}", "sine", "118", "sine", "236", "sine", "354", "sine", "472",
+         "brownnoise", "remix", "-", "tremolo", "31", "40", "norm", "-3"],
+        check=True, capture_output=True,
+    )
+    return np.frombuffer(raw.stdout, dtype="<i2").reshape(-1, 5)[:, 0].astype(np.float32) / 32768.0
+
+
+def babble_track(sentences: list[str], voices: tuple[str, ...], seconds: float,
+                 rng: np.random.Generator) -> np.ndarray:
+    """Several talkers at once: each a chain of sentences by one voice, summed."""
+    n = int(seconds * SAMPLE_RATE)
+    out = np.zeros(n, dtype=np.float32)
+    clips = {(s, v): synthesise(s, v, 165, 50) for s in sentences for v in voices[:4]}
+    for talker, voice in enumerate(voices[:4]):
+        pos = int(rng.integers(0, SAMPLE_RATE))
+        while pos < n:
+            clip = clips[(sentences[int(rng.integers(len(sentences)))], voice)]
+            clip = clip / (np.sqrt(np.mean(clip**2)) + 1e-9)
+            end = min(n, pos + clip.size)
+            out[pos:end] += clip[: end - pos]
+            pos = end + int(rng.integers(0, SAMPLE_RATE // 4))
+    return out
+
+
+def power(x: np.ndarray) -> float:
+    return float(np.mean(np.asarray(x, dtype=np.float64) ** 2))
+
+
+def mix_at_snr(speech: np.ndarray, span: slice, noise: np.ndarray, snr_db: float) -> np.ndarray:
+    """Add ``noise`` scaled so that speech power (over ``span``) / noise power (same span) = snr_db."""
+    scale = np.sqrt(power(speech[span]) / (power(noise[span]) * 10 ** (snr_db / 10)))
+    mixed = speech + scale * noise
+    peak = float(np.max(np.abs(mixed)))
+    return mixed / peak * 0.99 if peak > 0.99 else mixed  # scaling both keeps the SNR
+
+
+def write_wav(path: Path, samples: np.ndarray) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    pcm = (np.clip(samples, -1.0, 32767 / 32768) * 32768).astype("<i2")
+    with wave.open(str(path), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(SAMPLE_RATE)
+        w.writeframes(pcm.tobytes())
+
+
+def read_wav(path: Path) -> np.ndarray:
+    with wave.open(str(path), "rb") as w:
+        return np.frombuffer(w.readframes(w.getnframes()), dtype="<i2").astype(np.float32) / 32768.0
+
+
+def plan(lang: str, takes: int, ood: int, rng: np.random.Generator) -> list[Utterance]:
+    """Which text, voice, speed and pitch each utterance gets; one in three takes is 'dev'."""
+    dictionary = load_language(lang)
+    voices = VOICES[lang]
+    out: list[Utterance] = []
+    for ci, action in enumerate(MOTION_ACTIONS):
+        phrases = dictionary.phrases_for(action)
+        for k in range(takes):
+            out.append(Utterance(
+                utt=f"{action}_{k:02d}", lang=lang, action=action, text=phrases[k % len(phrases)].text,
+                voice=voices[(k + ci) % len(voices)], speed_wpm=int(rng.integers(*SPEED_WPM)),
+                pitch=int(rng.integers(*PITCH)), split="dev" if k % 3 == 0 else "test",
+            ))
+    sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["ood"][:ood]
+    for i, text in enumerate(sentences):
+        out.append(Utterance(
+            utt=f"none_{i:02d}", lang=lang, action="none", text=text, voice=voices[i % len(voices)],
+            speed_wpm=int(rng.integers(*SPEED_WPM)), pitch=int(rng.integers(*PITCH)),
+            split="dev" if i % 3 == 0 else "test",
+        ))
+    return out
+
+
+def noise_label(noise: str, snr: float | None) -> str:
+    return noise if snr is None else f"{noise}{snr:g}"
+
+
+def make_corpus(out: Path, seed: int = 1, langs: tuple[str, ...] = ("en", "es"), takes: int = 15,
+                ood: int = 24, noises: tuple[tuple[str, float | None], ...] = NOISES,
+                workers: int = 2) -> Path:
+    """Write the corpus under ``out``; returns the manifest path."""
+    rng = np.random.default_rng(seed)
+    rows: list[dict[str, str]] = []
+    for lang in langs:
+        utterances = plan(lang, takes, ood, rng)
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            clean = list(pool.map(lambda u: synthesise(u.text, u.voice, u.speed_wpm, u.pitch), utterances))
+        sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["babble"]
+        other = VOICES["es" if lang == "en" else "en"]
+        need_babble = any(n == "babble" for n, _ in noises)
+        babble = babble_track(sentences, VOICES[lang][1::2] + other[:1], 30.0, rng) if need_babble else None
+        hum = propeller_hum(30.0) if any(n == "hum" for n, _ in noises) else None
+        for u, speech in zip(utterances, clean):
+            speech = speech / (float(np.max(np.abs(speech))) + 1e-9) * SPEECH_PEAK
+            lead, trail = int(LEAD_SILENCE_S * SAMPLE_RATE), int(TRAIL_SILENCE_S * SAMPLE_RATE)
+            padded = np.concatenate([np.zeros(lead, np.float32), speech, np.zeros(trail, np.float32)])
+            span = slice(lead, lead + speech.size)
+            for noise, snr in noises:
+                if noise == "raw":
+                    signal = padded
+                elif noise.startswith("u"):
+                    amp = float(noise[1:])
+                    signal = np.clip(padded + rng.uniform(-amp, amp, padded.size), -1.0, 1.0)
+                else:
+                    track = babble if noise == "babble" else hum
+                    start = int(rng.integers(0, track.size - padded.size))
+                    signal = mix_at_snr(padded, span, track[start:start + padded.size], float(snr))
+                label = noise_label(noise, snr)
+                rel = Path(lang) / label / f"{u.utt}.wav"
+                write_wav(out / rel, signal)
+                rows.append({
+                    "path": str(rel), "lang": lang, "class": u.action, "noise": noise,
+                    "snr": "-" if snr is None else f"{snr:g}", "voice": f"{u.voice} s{u.speed_wpm} p{u.pitch}",
+                    "text": u.text, "split": u.split, "utt": f"{lang}/{u.utt}",
+                })
+    manifest = out / "manifest.tsv"
+    with manifest.open("w", encoding="utf-8") as f:
+        f.write("\t".join(MANIFEST_COLUMNS) + "\n")
+        for row in rows:
+            f.write("\t".join(row[c] for c in MANIFEST_COLUMNS) + "\n")
+    return manifest
+
+
+def read_manifest(path: Path) -> list[dict[str, str]]:
+    lines = Path(path).read_text(encoding="utf-8").splitlines()
+    header = lines[0].split("\t")
+    return [dict(zip(header, line.split("\t"))) for line in lines[1:] if line]
+
+
+def parse_noises(spec: str) -> tuple[tuple[str, float | None], ...]:
+    """'raw,u0.05,babble10' -> the matching entries of NOISES."""
+    wanted = set(spec.split(","))
+    chosen = tuple(n for n in NOISES if noise_label(*n) in wanted)
+    unknown = wanted - {noise_label(*n) for n in NOISES}
+    if unknown:
+        raise SystemExit(f"make_corpus: unknown noise(s) {', '.join(sorted(unknown))} "
+                         f"(known: {', '.join(noise_label(*n) for n in NOISES)})")
+    return chosen
+
+
+def main(argv: list[str] | None = None) -> int:
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--out", type=Path, default=REPO / "corpus", help="output folder (default: corpus/)")
+    p.add_argument("--seed", type=int, default=1)
+    p.add_argument("--langs", default="en,es")
+    p.add_argument("--takes", type=int, default=15, help="takes per class and language (paper: 15)")
+    p.add_argument("--ood", type=int, default=24, help="out-of-domain sentences per language")
+    p.add_argument("--noises", default=",".join(noise_label(*n) for n in NOISES))
+    args = p.parse_args(argv)
+    t0 = time.monotonic()
+    manifest = make_corpus(args.out, args.seed, tuple(args.langs.split(",")), args.takes, args.ood,
+                           parse_noises(args.noises))
+    n = len(read_manifest(manifest))
+    print(f"{n} utterances -> {manifest} in {time.monotonic() - t0:.1f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
