@@ -35,7 +35,7 @@ def test_bad_input_is_one_line(args: list[str], message: str, tmp_path: Path) ->
 def test_no_vehicle_is_one_line_and_leaves_the_logs(tmp_path: Path) -> None:
     port = free_udp_port()
     proc = _fly("--connect", f"udpin:127.0.0.1:{port}", "--wait", "1", "--engine", "sphinx", "--say",
-                str(demo_wav("stop")), "--log-name", "s", tmp_path=tmp_path)
+                str(demo_wav("hover")), "--log-name", "s", tmp_path=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("gcs-voice: error: no vehicle heard")
     assert (tmp_path / "s.jsonl").is_file()  # the attempt is on record

@@ -25,8 +25,8 @@ def parts() -> None:
 
 def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Path) -> None:
     out_of_domain = speech(tmp_path, "open the window")
-    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("stop"), speech(tmp_path, "turn right"),
-            demo_wav("go_forward"), demo_wav("down")]
+    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("hover"), speech(tmp_path, "turn right"),
+            demo_wav("go_forward"), demo_wav("move_down")]
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         result = run_fly(sim.connection, wavs, tmp_path, gap_s=2.5, hold_s=5.0)
     assert result.returncode == 0, result.stderr + result.stdout[-2000:]
@@ -64,7 +64,12 @@ def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Pa
     forward2 = leg2[0] * math.cos(h2) + leg2[1] * math.sin(h2)
     sideways2 = -leg2[0] * math.sin(h2) + leg2[1] * math.cos(h2)
     assert forward2 > 0.5 and abs(sideways2) < 0.3
-    assert forward1 > forward2  # 2.5 s of "go forward" plus the next utterance vs the same minus the stop
+    # Distances match the commanded speed and how long each action lasted (speed-up x wall time), less
+    # the ~0.5 s the vehicle takes to reach the speed: the right order of magnitude, not a coincidence.
+    speed_m_s = 0.5  # horizontal_speed_m_s in gcs_voice/data/settings.toml
+    for travelled, start, end in ((forward1, t_fwd1, t_stop), (forward2, t_fwd2, t_down)):
+        expected = speed_m_s * SPEEDUP * (end - start)
+        assert 0.75 * expected < travelled < 1.1 * expected, (travelled, expected)
 
     # down stops by itself 0.5 m above the ground; the session ends with the vehicle stopped.
     final_alt = flight.track.alt_m[-1]

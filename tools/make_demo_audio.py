@@ -57,7 +57,8 @@ def main(argv: list[str] | None = None) -> int:
     differ = 0
     for lang, voice in voices.items():
         for step in data.get(lang, []):
-            wav = synthesize(step["text"], voice["voice"], int(voice["speed_wpm"]))
+            wav = synthesize(step["text"], step.get("voice", voice["voice"]),
+                             int(step.get("speed_wpm", voice["speed_wpm"])))
             path = AUDIO_DIR / step["file"]
             if args.check:
                 same = path.is_file() and path.read_bytes() == wav
