@@ -16,9 +16,10 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.fence import FENCE_BRAKE_ACCEL_M_S2, Fence
 from sim_bridge.setpoints import Setpoint
 
-__all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]
+__all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]   # Fence re-exported
 
 #: Below this climb (m) after a takeoff started the vehicle is still "on the ground" for the auto-disarm.
 LIFTOFF_HEIGHT_M = 0.1
@@ -26,10 +27,8 @@ LIFTOFF_HEIGHT_M = 0.1
 HOLD_CAPTURE_SPEED_M_S = 0.15
 #: Gain turning a per-axis position target into a velocity (used when position and velocity are mixed).
 POSITION_TO_VELOCITY_PER_S = 1.0
-#: Deceleration assumed when stopping before a fence (AC_Avoid uses the position controller's accel).
-FENCE_BRAKE_ACCEL_M_S2 = 1.5
-#: Altitude targets stay this far below the room ceiling.
-CEILING_MARGIN_M = 0.4
+#: Altitude targets stay this far below ``ceiling_m`` (the highest the gear point can go without touching).
+CEILING_MARGIN_M = 0.2
 
 
 class Behaviour(enum.Enum):
@@ -67,51 +66,8 @@ class VehicleLimits:
     yaw_slew_rad_s: float | None = math.radians(60)
     auto_yaw_min_speed_m_s: float = 0.5
     return_alt_m: float = 15.0
+    return_cone_deg: float | None = None    # PX4: return no higher than distance / tan(cone) near home
     return_speed_m_s: float = 5.0
-
-
-@dataclass
-class Fence:
-    """Inclusion fence (NED metres from home): stop before it, like ArduCopter's fence avoidance."""
-
-    enabled: bool = False
-    margin_m: float = 0.5
-    alt_max_m: float | None = None
-    radius_m: float | None = None
-    box_ned_m: tuple[float, float, float, float] | None = None   # north_min, north_max, east_min, east_max
-
-    def limit(self, pos: tuple[float, float, float], vel: list[float]) -> bool:
-        """Reduce the outward components of ``vel`` (in place) so the vehicle stops inside. True if changed."""
-        if not self.enabled:
-            return False
-        changed = False
-
-        def cap(component: int, distance_m: float, outward_sign: float) -> None:
-            nonlocal changed
-            allowed = math.sqrt(2.0 * FENCE_BRAKE_ACCEL_M_S2 * max(0.0, distance_m - self.margin_m))
-            if vel[component] * outward_sign > allowed:
-                vel[component] = outward_sign * allowed
-                changed = True
-
-        if self.alt_max_m is not None:
-            cap(2, self.alt_max_m - (-pos[2]), -1.0)
-        if self.box_ned_m is not None:
-            n_min, n_max, e_min, e_max = self.box_ned_m
-            cap(0, n_max - pos[0], 1.0)
-            cap(0, pos[0] - n_min, -1.0)
-            cap(1, e_max - pos[1], 1.0)
-            cap(1, pos[1] - e_min, -1.0)
-        if self.radius_m is not None:
-            dist = math.hypot(pos[0], pos[1])
-            if dist > 1e-6:
-                ux, uy = pos[0] / dist, pos[1] / dist
-                outward = vel[0] * ux + vel[1] * uy
-                allowed = math.sqrt(2.0 * FENCE_BRAKE_ACCEL_M_S2 * max(0.0, self.radius_m - dist - self.margin_m))
-                if outward > allowed:
-                    vel[0] -= (outward - allowed) * ux
-                    vel[1] -= (outward - allowed) * uy
-                    changed = True
-        return changed
 
 
 def _wrap_pi(angle_rad: float) -> float:
@@ -131,8 +87,8 @@ class Vehicle:
     multicopter: Any
     limits: VehicleLimits = field(default_factory=VehicleLimits)
     fence: Fence = field(default_factory=Fence)
-    ceiling_m: float | None = None          # room height above the home floor, if known
-    room_box_ned_m: tuple[float, float, float, float] | None = None   # walls: north_min, north_max, east_min, east_max
+    ceiling_m: float | None = None          # highest gear altitude (m above home) before the vehicle touches the ceiling
+    room_box_ned_m: tuple[float, float, float, float] | None = None   # where the gear point fits: n_min, n_max, e_min, e_max
     time_s: float = 0.0
     behaviour: Behaviour = Behaviour.IDLE
     setpoint: Setpoint | None = None
@@ -148,6 +104,7 @@ class Vehicle:
         self._touchdown_s: float | None = None
         self._airborne = not self.state.on_ground
         self._rtl_phase = "climb"
+        self.rtl_alt_m = 0.0
         self._last_descent_m_s = 0.0
         self.touchdown_speed_m_s = 0.0
 
@@ -197,7 +154,8 @@ class Vehicle:
         """Climb to ``alt_m`` above home after the spool-up; the caller checked armed and landed."""
         self._takeoff_alt_m = self._cap_altitude(alt_m)
         self._takeoff_started_s = self.time_s
-        self._hold = _Hold(point_ned_m=None, yaw_rad=self.state.yaw_rad)
+        self._yaw_target_rad = float(self.state.yaw_rad)
+        self._hold = _Hold(point_ned_m=None, yaw_rad=self._yaw_target_rad)
         self.behaviour = Behaviour.TAKEOFF
 
     def hold(self) -> None:
@@ -211,10 +169,18 @@ class Vehicle:
         self._touchdown_s = None
         self.behaviour = Behaviour.LAND
 
-    def return_to_launch(self) -> None:
+    def return_to_launch(self) -> float:
+        """Climb (never descend) to the return altitude, fly home, land; returns that altitude (m above home)."""
+        pos = self.state.pos_ned_m
+        return_alt = self.limits.return_alt_m
+        if self.limits.return_cone_deg:
+            distance = math.hypot(float(pos[0]), float(pos[1]))
+            return_alt = min(return_alt, distance / math.tan(math.radians(self.limits.return_cone_deg)))
+        self.rtl_alt_m = self._cap_altitude(max(-float(pos[2]), return_alt))
         self._rtl_phase = "climb"
         self._touchdown_s = None
         self.behaviour = Behaviour.RTL
+        return self.rtl_alt_m
 
     def follow(self, setpoint: Setpoint, from_ground: bool = False) -> None:
         """Take a new external setpoint (already in NED, absolute yaw).
@@ -260,7 +226,7 @@ class Vehicle:
             target, done = self._takeoff_target(pos)
             if done:
                 events.append(VehicleEvent.TAKEOFF_DONE)
-                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._yaw_target_rad)
+                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._hold.yaw_rad)
                 self.behaviour = Behaviour.HOLD
         elif self.behaviour is Behaviour.VELOCITY:
             target = self._velocity_target(pos, dt_s)
@@ -351,7 +317,7 @@ class Vehicle:
     def _rtl_target(self, pos: tuple[float, float, float], events: list[VehicleEvent]) -> Any:
         from sim_bridge.control import ControlTarget
 
-        return_alt = self._cap_altitude(max(-pos[2], self.limits.return_alt_m))
+        return_alt = self.rtl_alt_m
         if self._rtl_phase == "climb":
             if -pos[2] >= return_alt - 0.1:
                 self._rtl_phase = "return"

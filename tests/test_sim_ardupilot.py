@@ -33,7 +33,7 @@ def gcs():
 
 
 def _airborne(g: LockstepGcs, alt_m: float = 2.0) -> None:
-    g.run(1.5)
+    g.boot()
     assert g.command(M.MAV_CMD_DO_SET_MODE, 1, GUIDED) == [ACCEPTED]
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == [ACCEPTED]
     assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, alt_m) == [ACCEPTED]
@@ -73,7 +73,7 @@ def test_refusals_are_failed_like_arducopter(gcs: LockstepGcs) -> None:
     assert g.last("HEARTBEAT").system_status == M.MAV_STATE_BOOT
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == [FAILED]
     assert "Arm: System not initialised" in g.texts()
-    g.run(1.5)
+    g.boot()
     assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, 0, 0, 0, 2) == [FAILED], "disarmed in STABILIZE"
     assert g.command(M.MAV_CMD_DO_SET_MODE, 1, 99) == [FAILED]
     assert "No such mode 99" in g.texts()
@@ -89,7 +89,7 @@ def test_refusals_are_failed_like_arducopter(gcs: LockstepGcs) -> None:
 
 def test_set_mode_message_gets_no_ack_but_an_immediate_heartbeat(gcs: LockstepGcs) -> None:
     g = gcs
-    g.run(1.5)
+    g.boot()
     start = len(g.received)
     g.send(g.mav.set_mode_encode(1, 1, GUIDED))
     g.run(0.05)   # well before the next 1 Hz beat
@@ -154,7 +154,7 @@ def test_velocity_setpoint_outside_guided_is_ignored(gcs: LockstepGcs) -> None:
 def test_fence_stops_before_the_living_room_wall() -> None:
     g = LockstepGcs("ardupilot", room="living_room")
     try:
-        g.run(1.5)
+        g.boot()
         g.server.params.set("FENCE_ENABLE", 1)
         _airborne(g, 1.2)
         g.run(6.0, every=lambda: g.setpoint(M.MAV_FRAME_LOCAL_NED, VELOCITY_YAW, vx=1.0))

@@ -70,7 +70,7 @@ def test_udp_out_and_two_tcp_clients_then_sigterm_closes_the_tlog(tmp_path: Path
             hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
             assert hb is not None and hb.autopilot == M.MAV_AUTOPILOT_ARDUPILOTMEGA
         a, b = clients
-        time.sleep(1.2)    # past the 1 s boot
+        time.sleep(2.7)    # past the 2.5 s boot
         a.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0, 1, 4, 0, 0, 0, 0, 0)
         ack = a.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
         assert ack.command == M.MAV_CMD_DO_SET_MODE and ack.result == M.MAV_RESULT_ACCEPTED

@@ -79,7 +79,7 @@ def test_mission_list(autopilot: str, expected_after_boot: int) -> None:
     try:
         g.send(g.mav.mission_request_list_encode(1, 1, 0))
         assert g.wait("MISSION_COUNT", 0.3).count == 0
-        g.run(1.5)
+        g.boot()
         g.send(g.mav.mission_request_list_encode(1, 1, 0))
         assert g.wait("MISSION_COUNT", 0.3).count == expected_after_boot
         if expected_after_boot:

@@ -45,7 +45,7 @@ def _next_heartbeat(g: LockstepGcs, every=None):
 
 
 def _hold_airborne(g: LockstepGcs) -> None:
-    g.run(1.5)
+    g.boot()
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == [ACCEPTED]
     assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, 488.0 + 3.0) == [ACCEPTED]
     g.run(8.0)
@@ -54,7 +54,7 @@ def _hold_airborne(g: LockstepGcs) -> None:
 
 def test_heartbeat_and_mode_numbers(gcs: LockstepGcs) -> None:
     g = gcs
-    g.run(1.5)
+    g.boot()
     hb = g.last("HEARTBEAT")
     assert (hb.autopilot, hb.type, hb.custom_mode, hb.base_mode) == (M.MAV_AUTOPILOT_PX4, 2, HOLD, 29)
     assert g.command(M.MAV_CMD_DO_SET_MODE, 1, 4, 0) == [ACCEPTED, ACCEPTED]

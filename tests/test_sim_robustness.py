@@ -14,7 +14,7 @@ NAN = math.nan
 
 
 def _fly(g: LockstepGcs) -> None:
-    g.run(1.5)
+    g.boot()
     assert g.command(M.MAV_CMD_DO_SET_MODE, 1, 4) == [M.MAV_RESULT_ACCEPTED]
     assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == [M.MAV_RESULT_ACCEPTED]
     assert g.command(M.MAV_CMD_NAV_TAKEOFF, 0, 0, 0, NAN, NAN, NAN, 1.5) == [M.MAV_RESULT_ACCEPTED]

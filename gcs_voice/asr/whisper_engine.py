@@ -1,0 +1,179 @@
+"""Whisper (faster-whisper / CTranslate2, CPU int8): multilingual, free decoding biased to the domain.
+
+Short commands make Whisper hallucinate (repetition loops, invented sentences on noise), so each
+utterance is decoded in ONE 30 s window with: a few new tokens at most (``max_new_tokens``), no
+previous-text conditioning, no timestamps, the dictionary phrases as the prompt, the language forced
+when known. We call CTranslate2's ``generate`` ourselves (as faster-whisper's
+``generate_with_fallback`` does) to get the beam's n-best list, which ``transcribe`` hides.
+``--lang auto`` picks, per utterance, the most probable of the loaded dictionaries' languages.
+Rejection evidence in ``Recognition.extra``: ``no_speech_prob``, ``avg_logprob``,
+``compression_ratio``, ``language_probability``, ``temperature``.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import numpy as np
+
+from gcs_voice.asr.base import SAMPLE_RATE, Hypothesis, Recognition
+from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
+from gcs_voice.asr.settings import engine_settings
+from gcs_voice.dictionary import Dictionary
+from gcs_voice.errors import ModelError
+from gcs_voice.text import normalize_text
+
+__all__ = ["WhisperRecognizer", "WhisperStream"]
+
+
+class WhisperRecognizer:
+    """One faster-whisper model for all the dictionaries' languages."""
+
+    name = "whisper"
+
+    def __init__(self, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
+        from faster_whisper import WhisperModel
+
+        self.settings = engine_settings("whisper")
+        self.mode = mode
+        resolved = find_whisper_model(model, self.settings.get("model_dirs"))
+        if resolved is None:
+            raise ModelError(whisper_model_hint("base"))
+        try:
+            self.model = WhisperModel(
+                resolved,
+                device=self.settings.get("device", "cpu"),
+                compute_type=self.settings.get("compute_type", "int8"),
+                cpu_threads=int(self.settings.get("cpu_threads", 2)),
+                local_files_only=True,  # never download at run time
+            )
+        except Exception as exc:  # huggingface_hub / ctranslate2 errors: not found, corrupt
+            if model is not None and not any(sep in model for sep in "/\\"):
+                raise ModelError(whisper_model_hint(model)) from None
+            raise ModelError(f"cannot load the Whisper model {resolved}: {str(exc).splitlines()[0]}") from None
+        self.dictionaries = {d.language: d for d in dictionaries}
+        self.languages = tuple(self.dictionaries)
+        if not self.model.model.is_multilingual and set(self.languages) - {"en"}:
+            raise ModelError(f"Whisper model {resolved} is English-only; it cannot do {', '.join(self.languages)}")
+        self._prompts: dict[str, list[int]] = {}
+
+    @classmethod
+    def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
+        return cls(dictionaries, model=model, mode=mode)
+
+    def start_stream(self, lang: str | None = None) -> WhisperStream:
+        if lang not in (None, "auto") and lang not in self.dictionaries:
+            raise ModelError(f"no dictionary loaded for {lang!r} (loaded: {', '.join(self.languages)})")
+        return WhisperStream(self, None if lang in (None, "auto") and len(self.languages) > 1 else
+                             (lang if lang not in (None, "auto") else self.languages[0]))
+
+    # -- decoding ---------------------------------------------------------------------------------
+    def _tokenizer(self, lang: str):
+        from faster_whisper.tokenizer import Tokenizer
+
+        return Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe", language=lang)
+
+    def _prompt(self, lang: str) -> list[int]:
+        """The dictionary's words as the previous-text prompt (domain bias), then the task tokens.
+
+        Words, not whole phrases: the full phrase list is long (slower) and Whisper then tends to
+        recite it ("turn right, go back,") on silence.
+        """
+        if lang not in self._prompts:
+            tokenizer = self._tokenizer(lang)
+            previous: list[int] = []
+            if self.settings.get("prompt_with_dictionary", True):
+                words = ", ".join(self.dictionaries[lang].vocabulary()) + "."
+                previous = tokenizer.encode(" " + words)
+            self._prompts[lang] = self.model.get_prompt(tokenizer, previous, without_timestamps=True)
+        return self._prompts[lang]
+
+    def detect(self, encoder_output, fixed: str | None) -> tuple[str, float, float]:
+        """(language, its probability among all, probability mass of the loaded languages)."""
+        results = self.model.model.detect_language(encoder_output)[0]
+        probs = {token[2:-2]: float(p) for token, p in results}
+        if fixed is not None:
+            return fixed, probs.get(fixed, 0.0), probs.get(fixed, 0.0)
+        lang = max(self.languages, key=lambda code: probs.get(code, 0.0))
+        return lang, probs.get(lang, 0.0), sum(probs.get(code, 0.0) for code in self.languages)
+
+    def decode(self, pcm: bytes, fixed_lang: str | None) -> Recognition:
+        from faster_whisper.audio import pad_or_trim
+        from faster_whisper.transcribe import get_compression_ratio
+
+        audio = np.frombuffer(pcm, "<i2").astype(np.float32) / 32768.0
+        audio_s = audio.size / SAMPLE_RATE
+        if audio.size < SAMPLE_RATE // 10:  # under 0.1 s: nothing to decode
+            return Recognition((), self.name, fixed_lang, audio_s, {})
+        features = self.model.feature_extractor(audio)
+        encoder_output = self.model.encode(pad_or_trim(features))
+        lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
+        prompt = self._prompt(lang)
+        tokenizer = self._tokenizer(lang)
+        s = self.settings
+        n_best = max(1, int(s.get("beam_size", 5)))
+        max_length = len(prompt) + int(s.get("max_new_tokens", 16))
+        chosen = None
+        for temperature in s.get("temperature", [0.0]):
+            if temperature > 0:
+                kwargs = {"beam_size": 1, "num_hypotheses": n_best, "sampling_topk": 0,
+                          "sampling_temperature": float(temperature)}
+            else:
+                kwargs = {"beam_size": n_best, "num_hypotheses": n_best}
+            result = self.model.model.generate(
+                encoder_output, [prompt], max_length=max_length, return_scores=True,
+                return_no_speech_prob=True, suppress_blank=True, suppress_tokens=[-1], **kwargs,
+            )[0]
+            candidates = []
+            for tokens, score in zip(result.sequences_ids, result.scores):
+                text = tokenizer.decode(tokens).strip()
+                avg_logprob = score * len(tokens) / (len(tokens) + 1)  # as faster-whisper recovers it
+                candidates.append((text, avg_logprob, get_compression_ratio(text) if text else 0.0))
+            candidates.sort(key=lambda c: c[1], reverse=True)
+            chosen = (candidates, float(result.no_speech_prob), float(temperature))
+            best = candidates[0]
+            if best[2] <= s.get("compression_ratio_threshold", 2.4) and best[1] >= s.get("log_prob_threshold", -1.0):
+                break
+            if float(result.no_speech_prob) > s.get("no_speech_threshold", 0.6):
+                break  # silence: a fallback would only invent words
+        candidates, no_speech_prob, temperature = chosen
+        hypotheses: list[Hypothesis] = []
+        seen: set[str] = set()
+        for text, avg_logprob, _ in candidates:
+            key = normalize_text(text)
+            if key and key not in seen:  # "stop", "stop." and "Stop," are one hypothesis
+                seen.add(key)
+                hypotheses.append(Hypothesis(text, confidence=math.exp(avg_logprob), score=avg_logprob))
+        best = candidates[0]
+        extra = {
+            "no_speech_prob": no_speech_prob,
+            "avg_logprob": best[1],
+            "compression_ratio": best[2],
+            "language_probability": lang_prob,
+            "dictionary_language_mass": known_mass,
+            "temperature": temperature,
+        }
+        return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
+
+
+class WhisperStream:
+    """Whisper decodes whole utterances: PCM is buffered and decoded at ``finish``."""
+
+    def __init__(self, recognizer: WhisperRecognizer, lang: str | None):
+        self._rec = recognizer
+        self._lang = lang
+        self._pcm = bytearray()
+        self._done = False
+
+    def accept(self, pcm: bytes) -> None:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        self._pcm += pcm
+
+    def finish(self) -> Recognition:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        self._done = True
+        max_samples = 30 * SAMPLE_RATE  # one Whisper window; a command is far shorter
+        return self._rec.decode(bytes(self._pcm[: max_samples * 2]), self._lang)

@@ -1,0 +1,34 @@
+"""Live utterances for a session: the microphone through the segmenter, always listening or push-to-talk.
+
+Push-to-talk (``--push-to-talk``) gates the same stream: while the talk key is not held open the
+segmenter is fed silence, so closing it ends the utterance at once and nothing said outside it counts.
+Each utterance comes with the wall-clock time its speech ended (the segmenter's end, not the moment
+its hangover ran out), which is where latency is counted from.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterator
+
+__all__ = ["microphone_utterances"]
+
+
+def microphone_utterances(push_to_talk: bool = False, device: int | str | None = None) -> Iterator[tuple[bytes, float]]:
+    """(PCM, UNIX time the speech ended) per utterance, until the consumer stops."""
+    from gcs_voice.audio import AudioChunk, microphone_chunks
+    from gcs_voice.keys import talk
+    from gcs_voice.vad import segment_utterances
+
+    t0: list[float] = []
+
+    def gated() -> Iterator[AudioChunk]:
+        for chunk in microphone_chunks(device):
+            if not t0:
+                t0.append(time.time() - chunk.start_s)
+            if push_to_talk and not talk.is_set():
+                chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
+            yield chunk
+
+    for utterance in segment_utterances(gated()):
+        yield utterance.pcm, t0[0] + utterance.end_s

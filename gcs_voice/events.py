@@ -1,0 +1,72 @@
+"""What happened in a session, as flat records: the one currency of the view, the console and the log.
+
+Every event is a dict-like record with a UNIX time ``t``, a ``kind`` and a human sentence ``msg``,
+plus kind-specific fields. The headless console prints them (``--json``: exactly the session-log
+line), the live view folds them into its panels, the session log appends them to a JSON-lines file.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+__all__ = ["Event", "EventBus", "KINDS"]
+
+#: Event kinds, with what they carry beyond t/kind/msg.
+KINDS: dict[str, str] = {
+    "session": "start/end of a session: phase, argv, versions, files",
+    "link": "state connected|lost|restored, autopilot, vehicle ids",
+    "heard": "what the recogniser heard: text, alternatives, engine, lang, audio_s, source, recognize_ms",
+    "rejected": "no action: text, phrase (nearest), score, reason, matcher",
+    "command": "an action sent to the vehicle: action, phrase, score, origin (voice|key|script), setpoint",
+    "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",
+    "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
+    "vehicle": "STATUSTEXT from the vehicle: severity, text",
+    "warning": "something the pilot should know that is not a refusal",
+    "error": "the voice side or the link failed; the vehicle was stopped",
+}
+
+
+@dataclass
+class Event:
+    kind: str
+    msg: str
+    t: float = field(default_factory=time.time)
+    data: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """Flat record: t, kind, msg, then the kind's fields (which never override the first three)."""
+        record: dict[str, Any] = {"t": round(self.t, 4), "kind": self.kind, "msg": self.msg}
+        for key, value in self.data.items():
+            record.setdefault(key, value)
+        return record
+
+
+class EventBus:
+    """Fan events out to subscribers (view, console, log); thread-safe, a failing subscriber is dropped."""
+
+    def __init__(self) -> None:
+        self._subscribers: list[Callable[[Event], None]] = []
+        self._lock = threading.Lock()
+        self.history: list[Event] = []
+
+    def subscribe(self, callback: Callable[[Event], None]) -> None:
+        with self._lock:
+            self._subscribers.append(callback)
+
+    def emit(self, kind: str, msg: str, **data: Any) -> Event:
+        event = Event(kind, msg, time.time(), data)
+        with self._lock:
+            self.history.append(event)
+            subscribers = list(self._subscribers)
+        for callback in subscribers:
+            try:
+                callback(event)
+            except Exception:  # a broken display must never stop the flight loop
+                with self._lock:
+                    if callback in self._subscribers:
+                        self._subscribers.remove(callback)
+        return event

@@ -1,0 +1,67 @@
+"""What the pilot sees and what is kept: live view panels, headless lines, the session log."""
+
+from __future__ import annotations
+
+import io
+import json
+from pathlib import Path
+
+from gcs_voice.events import EventBus
+from gcs_voice.headless import HeadlessPrinter
+from gcs_voice.session_log import SessionLog, read_session_log, session_paths
+from gcs_voice.view import ViewState, render
+
+
+def _bus_with_a_session(tmp_path: Path) -> tuple[EventBus, io.StringIO, io.StringIO, Path]:
+    bus = EventBus()
+    human, machine = io.StringIO(), io.StringIO()
+    log_path = tmp_path / "s.jsonl"
+    log = SessionLog(log_path)
+    for subscriber in (log, HeadlessPrinter(stream=human), HeadlessPrinter(as_json=True, stream=machine)):
+        bus.subscribe(subscriber)
+    bus.emit("link", "link connected: ArduPilot, mode GUIDED", state="connected", autopilot="ArduPilot")
+    bus.emit("heard", "heard 'banana split' (sphinx, en)", text="banana split", engine="sphinx", lang="en")
+    bus.emit("rejected", "no action for 'banana split': too far", text="banana split", reason="too far from any phrase")
+    bus.emit("heard", "heard 'go forward' (sphinx, en)", text="go forward", engine="sphinx", lang="en")
+    bus.emit("command", "'go forward' -> go_forward (score 0.97)", action="go_forward", phrase="go forward",
+             score=0.97, origin="voice")
+    bus.emit("refused", "go_forward limited: fence 20 m from home", action="go_forward",
+             reason="fence 20 m from home")
+    bus.emit("link", "link LOST", state="lost")
+    log.close()
+    return bus, human, machine, log_path
+
+
+def test_headless_json_lines_are_the_session_log(tmp_path: Path) -> None:
+    bus, human, machine, log_path = _bus_with_a_session(tmp_path)
+    printed = [json.loads(line) for line in machine.getvalue().splitlines()]
+    assert printed == read_session_log(log_path)
+    assert [e["kind"] for e in printed] == ["link", "heard", "rejected", "heard", "command", "refused", "link"]
+    assert printed[2]["reason"] == "too far from any phrase" and printed[4]["score"] == 0.97
+    lines = human.getvalue().splitlines()
+    assert len(lines) == 7 and "rejected" in lines[2] and lines[4].rstrip().endswith("go_forward (score 0.97)")
+
+
+def test_view_shows_state_heard_did_rejected_and_warnings(tmp_path: Path) -> None:
+    from rich.console import Console
+
+    bus, *_ = _bus_with_a_session(tmp_path)
+    state = ViewState()
+    for event in bus.history:
+        state(event)
+    console = Console(width=110, record=True, file=io.StringIO())
+    console.print(render(state, {"link": "lost", "autopilot": "ArduPilot", "mode": "GUIDED", "armed": True,
+                                 "alt_m": 1.52, "heading_deg": 90.0, "speed_m_s": 0.31, "action": "stop"}))
+    text = console.export_text()
+    for expected in ("LOST", "ArduPilot", "GUIDED", "ARMED", "1.52 m", "90 deg", "0.31 m/s",
+                     '"go forward"', "go forward -> go_forward  score 0.97",
+                     '"banana split" - too far from any phrase', "fence 20 m from home", "link LOST"):
+        assert expected in text, expected
+
+
+def test_session_paths_never_overwrite(tmp_path: Path) -> None:
+    first = session_paths(tmp_path)
+    first[0].write_bytes(b"")
+    second = session_paths(tmp_path)
+    assert second[0] != first[0] and second[0].suffix == ".tlog" and second[1].suffix == ".jsonl"
+    assert session_paths(tmp_path, "named") == (tmp_path / "named.tlog", tmp_path / "named.jsonl")

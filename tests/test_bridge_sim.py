@@ -1,0 +1,114 @@
+"""Bridge safety rules against the real simulator, driven by key requests (no speech needed for these).
+
+Link loss is made real: the simulator process is frozen (SIGSTOP), so the vehicle falls silent on the
+wire exactly as a radio dropout would look to the ground station, then thawed (SIGCONT).
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import pytest
+
+from e2e_support import SPEEDUP, require_parts
+from gcs_voice.actions import ActionMapper
+from gcs_voice.bridge import Bridge, Request
+from gcs_voice.events import EventBus
+from gcs_voice.flight_log import read_flight
+from gcs_voice.link import VehicleLink
+from gcs_voice.listen import start_voice_thread
+from gcs_voice.session_log import SessionLog
+from gcs_voice.settings import load_settings
+from gcs_voice.sim_process import BundledSim
+
+pytestmark = pytest.mark.slow
+
+
+def _wait(predicate, timeout_s: float) -> bool:
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        if predicate():
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
+    """Motion before take-off refused; link lost: refused, silent, then a stop first; voice crash: stop, exit 1."""
+    require_parts("sim_bridge.cli")
+    settings = load_settings()
+    bus = EventBus()
+    log = SessionLog(tmp_path / "s.jsonl")
+    bus.subscribe(log)
+    tlog = tmp_path / "s.tlog"
+    marks: dict[str, float] = {}
+    with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
+        link = VehicleLink(sim.connection, settings, tlog_path=tlog)
+        link.open()
+        try:
+            link.wait_vehicle(30)
+            link.request_telemetry()
+            bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
+
+            def script() -> None:
+                early = bridge.submit(Request("go_forward", "key"))
+                early.done.wait(5)
+                bridge.submit(Request("take_off", "key"))
+                assert bridge.flying_ready.wait(60)
+                bridge.submit(Request("go_forward", "key")).done.wait(5)
+                time.sleep(1.0)
+                marks["pause"] = time.time()
+                sim.pause()
+                _wait(lambda: any(e.kind == "link" and e.data.get("state") == "lost" for e in bus.history), 6)
+                marks["lost"] = time.time()
+                refused = bridge.submit(Request("go_back", "key"))
+                refused.done.wait(5)
+                time.sleep(0.5)
+                marks["resume"] = time.time()
+                sim.resume()
+                _wait(lambda: any(e.kind == "link" and e.data.get("state") == "restored" for e in bus.history), 6)
+                time.sleep(1.0)
+                bridge.submit(Request("go_right", "key")).done.wait(5)
+                time.sleep(1.0)
+                marks["crash"] = time.time()
+                start_voice_thread(bridge, crash)  # the voice side dies mid-flight
+
+            def crash() -> None:
+                raise RuntimeError("microphone unplugged")
+
+            worker = threading.Thread(target=script, daemon=True)
+            worker.start()
+            assert bridge.run() == 1  # ended by the crash, vehicle stopped first
+            worker.join(5)
+        finally:
+            link.close()
+            log.close()
+
+    events = [e.to_dict() for e in bus.history]
+    refused = [e for e in events if e["kind"] == "refused"]
+    assert refused[0]["action"] == "go_forward" and "not armed" in refused[0]["reason"]
+    assert any(e["action"] == "go_back" and "link lost" in e["reason"] for e in refused)
+    assert not any(e["kind"] == "command" and e.get("action") == "go_back" for e in events)
+    states = [e["state"] for e in events if e["kind"] == "link"]
+    assert states[:1] == ["connected"] and "lost" in states and states[-1] == "restored"
+
+    flight = read_flight(tlog)
+    sent = flight.setpoints
+    # Nothing is commanded while the vehicle is silent (from 2 s after the freeze until it is heard again).
+    during = [s for s in sent if marks["pause"] + settings.link_lost_s + 0.2 < s.t_s < marks["resume"]]
+    assert during == []
+    # Before the loss: forward at 0.5 m/s; the first setpoint after the return: zero velocity.
+    before = [s for s in sent if s.t_s < marks["pause"]]
+    assert before and abs(before[-1].vx_m_s) + abs(before[-1].vy_m_s) > 0.4
+    after = [s for s in sent if s.t_s > marks["resume"]]
+    assert after, "no setpoint after the link returned"
+    assert (after[0].vx_m_s, after[0].vy_m_s, after[0].vz_m_s) == (0.0, 0.0, 0.0)
+
+    # The voice side crashed while going right: reported, and the session ended with a stop on the wire.
+    assert any(e["kind"] == "error" and "microphone unplugged" in e["msg"] for e in events)
+    final = [s for s in sent if s.t_s > marks["crash"]]
+    assert final and (final[-1].vx_m_s, final[-1].vy_m_s, final[-1].vz_m_s) == (0.0, 0.0, 0.0)
+    right = [s for s in sent if marks["resume"] < s.t_s < marks["crash"]]
+    assert any(abs(s.vx_m_s) + abs(s.vy_m_s) > 0.4 for s in right)  # it was moving when the voice side died

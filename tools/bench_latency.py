@@ -1,0 +1,226 @@
+#!/usr/bin/env python3
+"""Latency from the end of an utterance to (a) the action decided, (b) the first setpoint on the wire,
+(c) the vehicle's velocity (or heading) responding in telemetry; p50/p95 per engine.
+
+Each engine flies one real session (``gcs_voice.session.run_session``, the code ``gcs-voice --say`` runs)
+against the bundled simulator in real time (no speed-up, so (c) is in wall time) on loopback. Utterances
+are fed at speaking pace, and the clock starts when the last audio chunk has been fed, i.e. the end of the
+recording (0.3 s of trailing silence included, as a segmenter would wait for it). (a) and the utterance
+end come from the session log; (b) and (c) from the session's tlog (timestamps taken when the ground
+station sent or received each packet).
+
+Corpus: the espeak-ng phrases below (two voices), or ``--corpus DIR`` made by tools/make_corpus.py
+(its clean English command takes). Only utterances decided as the intended action are timed.
+
+    nice -n 10 python tools/bench_latency.py --out docs/bench/latency.md
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import statistics
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tools"))
+
+from gcs_voice.errors import GcsVoiceError  # noqa: E402
+from gcs_voice.flight_log import read_flight  # noqa: E402
+from gcs_voice.link.setpoints import body_to_ned  # noqa: E402
+from gcs_voice.listen import ScriptStep  # noqa: E402
+from gcs_voice.session_log import read_session_log  # noqa: E402
+
+#: (action, phrase): alternating motions and stops so every command changes the velocity it asks for,
+#: back-and-forth so the flight stays near home.
+SEQUENCE = [
+    ("go_forward", "go forward"), ("stop", "stop"), ("go_back", "go back"), ("stop", "halt"),
+    ("go_right", "go right"), ("stop", "stop"), ("go_left", "go left"), ("stop", "hold"),
+    ("up", "go up"), ("stop", "stop"), ("down", "go down"), ("stop", "stop"),
+    ("turn_right", "turn right"), ("turn_left", "turn left"),
+]
+VOICES = (("en-us", 140), ("en-gb", 160))
+RESPONSE_M_S = 0.1   # (c) velocity changed this much toward the new target
+RESPONSE_DEG = 5.0   # (c) for turns: heading moved this much toward the new target
+GAP_S = 2.5
+
+
+def synth_corpus(out_dir: Path) -> list[tuple[Path, str]]:
+    from make_demo_audio import synthesize
+
+    items = []
+    for voice, wpm in VOICES:
+        for i, (action, phrase) in enumerate(SEQUENCE):
+            path = out_dir / f"{voice}_{i:02d}_{action}.wav"
+            path.write_bytes(synthesize(phrase, voice, wpm))
+            items.append((path, action))
+    return items
+
+
+def corpus_from_dir(corpus: Path) -> list[tuple[Path, str]]:
+    """Clean English takes from tools/make_corpus.py's manifest, in SEQUENCE's class order."""
+    rows = list(csv.DictReader((corpus / "manifest.tsv").open(encoding="utf-8"), delimiter="\t"))
+    clean = [r for r in rows if r.get("lang") == "en" and r.get("noise", "raw") == "raw"]
+    by_class: dict[str, list[Path]] = {}
+    for r in clean:
+        by_class.setdefault(r["class"], []).append(corpus / r["path"])
+    items = []
+    for take in range(2):
+        for action, _phrase in SEQUENCE:
+            paths = by_class.get(action, [])
+            if len(paths) > take:
+                items.append((paths[take], action))
+    return items
+
+
+def percentile(values: list[float], q: float) -> float:
+    ordered = sorted(values)
+    if not ordered:
+        return math.nan
+    k = (len(ordered) - 1) * q
+    lo, hi = math.floor(k), math.ceil(k)
+    return ordered[lo] + (ordered[hi] - ordered[lo]) * (k - lo)
+
+
+def measure(jsonl: Path, tlog: Path, intended: dict[str, str]) -> list[dict]:
+    """Per correctly decided command: a, b, c in milliseconds (c None when nothing was to change).
+
+    ``intended`` maps a WAV file name to the action it says.
+    """
+    events = read_session_log(jsonl)
+    flight = read_flight(tlog)
+    source_of = {e.get("utterance_end_t"): e.get("source") for e in events if e["kind"] == "heard"}
+    out = []
+    for e in events:
+        if e["kind"] != "command" or e.get("origin") != "voice" or not e.get("setpoint"):
+            continue
+        if intended.get(source_of.get(e.get("utterance_end_t"), ""), "") != e["action"]:
+            continue
+        end_t, decided_t = e["utterance_end_t"], e["decided_t"]
+        sp = e["setpoint"]
+        north, east = body_to_ned(sp["forward_m_s"], sp["right_m_s"], sp["yaw_deg"])
+        want = (north, east, sp["down_m_s"])
+        first = next((s for s in flight.setpoints if s.t_s >= decided_t - 0.002
+                      and abs(s.vx_m_s - want[0]) < 0.02 and abs(s.vy_m_s - want[1]) < 0.02
+                      and abs(s.vz_m_s - want[2]) < 0.02), None)
+        row = {"action": e["action"], "a_ms": (decided_t - end_t) * 1000,
+               "b_ms": (first.t_s - end_t) * 1000 if first else None, "c_ms": None}
+        if first is not None:
+            row["c_ms"] = _response_ms(flight, first.t_s, want, sp["yaw_deg"], e["action"], end_t)
+        out.append(row)
+    return out
+
+
+def _response_ms(flight, sent_t: float, want: tuple, yaw_deg: float, action: str, end_t: float) -> float | None:
+    tr = flight.track
+    if action.startswith("turn_"):
+        h0 = flight.heading_at(sent_t)
+        if h0 is None:
+            return None
+        sign = 1.0 if action == "turn_right" else -1.0
+        for t, h in zip(flight.heading_t_s, flight.heading_deg):
+            if t > sent_t and sign * (((h - h0 + 180.0) % 360.0) - 180.0) >= RESPONSE_DEG:
+                return (t - end_t) * 1000
+        return None
+    i0 = next((i for i, t in enumerate(tr.t_s) if t >= sent_t), None)
+    if i0 is None or i0 == 0:
+        return None
+    v0 = (tr.vn_m_s[i0 - 1], tr.ve_m_s[i0 - 1], -tr.vup_m_s[i0 - 1])
+    d = tuple(w - v for w, v in zip(want, v0))
+    norm = math.sqrt(sum(x * x for x in d))
+    if norm < 2 * RESPONSE_M_S:
+        return None  # already doing it: nothing to respond to
+    for i in range(i0, len(tr.t_s)):
+        v = (tr.vn_m_s[i], tr.ve_m_s[i], -tr.vup_m_s[i])
+        if sum((a - b) * c for a, b, c in zip(v, v0, d)) / norm >= RESPONSE_M_S:
+            return (tr.t_s[i] - end_t) * 1000
+    return None
+
+
+def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], work: Path) -> tuple[list[dict], int]:
+    from gcs_voice.session import SessionConfig, load_voice, run_session
+    from gcs_voice.sim_process import BundledSim
+
+    voice = load_voice("en", engine, model, None)
+    script = [ScriptStep(p, GAP_S) for p, _ in items]
+    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}.log") as sim:
+        result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
+                                           headless=True, log_dir=work, log_name=f"bench-{engine}"), voice=voice)
+    heard = [e for e in result.events if e["kind"] == "heard"]
+    return measure(result.jsonl, result.tlog, {p.name: a for p, a in items}), len(heard)
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--engines", default="sphinx,vosk,whisper", help="comma-separated engines to try")
+    parser.add_argument("--whisper-model", default=str(ROOT.parent / "shared" / "models" / "faster-whisper-base"))
+    parser.add_argument("--corpus", type=Path, help="tools/make_corpus.py output folder (default: espeak-ng here)")
+    parser.add_argument("--out", type=Path, help="write the markdown report here")
+    parser.add_argument("--keep", type=Path, help="keep tlogs and session logs in this folder")
+    args = parser.parse_args(argv)
+
+    work = args.keep or Path(tempfile.mkdtemp(prefix="bench-latency-"))
+    work.mkdir(parents=True, exist_ok=True)
+    items = corpus_from_dir(args.corpus) if args.corpus else synth_corpus(work)
+    corpus_note = (f"`{args.corpus}` (clean English takes)" if args.corpus else
+                   f"espeak-ng, {len(VOICES)} voices x {len(SEQUENCE)} phrases ({len(items)} utterances)")
+    rows = []
+    for engine in [e.strip() for e in args.engines.split(",") if e.strip()]:
+        model = args.whisper_model if engine == "whisper" else None
+        try:
+            started = time.monotonic()
+            timed, total = fly_engine(engine, model, items, work)
+        except GcsVoiceError as exc:
+            print(f"{engine}: skipped ({exc})")
+            rows.append(f"| {engine} | skipped: {exc} | | | | | | | |")
+            continue
+        a = [r["a_ms"] for r in timed]
+        b = [r["b_ms"] for r in timed if r["b_ms"] is not None]
+        c = [r["c_ms"] for r in timed if r["c_ms"] is not None]
+        line = (f"| {engine} | {len(timed)}/{len(items)} | {percentile(a, .5):.0f} | {percentile(a, .95):.0f} | "
+                f"{percentile(b, .5):.0f} | {percentile(b, .95):.0f} | {len(c)} | {percentile(c, .5):.0f} | "
+                f"{percentile(c, .95):.0f} |")
+        rows.append(line)
+        print(line, f"({time.monotonic() - started:.0f} s)")
+    report = "\n".join([
+        "# Latency: end of utterance to action, setpoint and vehicle response",
+        "",
+        "Command: `nice -n 10 python tools/bench_latency.py"
+        + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --out {args.out}" if args.out else "") + "`",
+        "",
+        f"Corpus: {corpus_note}; fed at speaking pace, one every {GAP_S:g} s, after `--takeoff 1.5`.",
+        "Vehicle: bundled simulator (`python -m sim_bridge.cli --autopilot ardupilot --room open_field`), real time,",
+        "UDP loopback. Clock origin: the end of the recording (trailing silence included).",
+        "(a) decided: recognition + matching; (b) first SET_POSITION_TARGET_LOCAL_NED carrying the new action on",
+        f"the wire (tlog); (c) telemetry shows the vehicle responding: velocity changed >= {RESPONSE_M_S:g} m/s toward",
+        f"the new target, or heading turned >= {RESPONSE_DEG:g} deg (n = commands that asked for a change).",
+        "Only utterances decided as the intended action are timed (timed/total). Milliseconds.",
+        "",
+        "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (c) n | (c) p50 | (c) p95 |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        *rows,
+        "",
+        f"Machine: {_machine()}.",
+        "",
+    ])
+    print(report)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(report, encoding="utf-8")
+    return 0
+
+
+def _machine() -> str:
+    import os
+    import platform
+
+    return f"{platform.machine()}, {os.cpu_count()} CPUs, Python {platform.python_version()}"
+
+
+if __name__ == "__main__":
+    sys.exit(main())
