@@ -39,7 +39,10 @@ class VehicleLink(FlightOperations):
                  on_event: Callable[[str], None] | None = None) -> None:
         self.spec = parse_connection(connection)
         self.settings = settings or load_settings()
-        self.tlog = TlogWriter(tlog_path) if tlog_path else None
+        try:
+            self.tlog = TlogWriter(tlog_path) if tlog_path else None
+        except OSError as exc:
+            raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
         self._conn: Any = None
@@ -126,16 +129,21 @@ class VehicleLink(FlightOperations):
         period_hb, period_sp = 1.0 / self.settings.heartbeat_hz, 1.0 / self.settings.setpoint_hz
         next_hb = next_sp = time.monotonic()
         while self._running:
-            self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
-            now = time.monotonic()
-            if now >= next_hb:
-                next_hb = max(next_hb + period_hb, now)
-                self._send(self._conn.mav.heartbeat_encode(
-                    mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
-            self._check_link(now)
-            if now >= next_sp:
-                next_sp = max(next_sp + period_sp, now)
-                self._stream_tick()
+            try:
+                self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
+                now = time.monotonic()
+                if now >= next_hb:
+                    next_hb = max(next_hb + period_hb, now)
+                    self._send(self._conn.mav.heartbeat_encode(
+                        mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+                self._check_link(now)
+                if now >= next_sp:
+                    next_sp = max(next_sp + period_sp, now)
+                    self._stream_tick()
+            except Exception as exc:  # this thread is the link: report a bug, never die of it
+                self.read_errors += 1
+                self.on_event(f"link thread error (ignored): {exc!r}")
+                time.sleep(0.05)
 
     def _receive(self, timeout_s: float) -> None:
         try:
