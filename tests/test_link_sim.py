@@ -134,10 +134,23 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
             assert disarmed is not None, f"not disarmed 20 s after LAND; (mode, landed, height): {track[::10]}"
     # the tlog holds our setpoints, all in the one encoding
     log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
-    encodings = set()
-    while (msg := log.recv_match(type="SET_POSITION_TARGET_LOCAL_NED")) is not None:
-        encodings.add((msg.coordinate_frame, msg.type_mask))
+    encodings, setpoint_t, mode_requests = set(), [], []
+    while (msg := log.recv_match(type=["SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG"])) is not None:
+        if msg.get_type() == "SET_POSITION_TARGET_LOCAL_NED":
+            encodings.add((msg.coordinate_frame, msg.type_mask))
+            setpoint_t.append(msg._timestamp)
+        elif msg.command == 176:
+            mode_requests.append((msg._timestamp, msg.param2, msg.param3))
     assert encodings == {(1, 2503)}
+    if autopilot == "px4":  # OFFBOARD asked for only after >= 0.5 s of setpoints at > 2 Hz
+        offboard_t = [t for t, main, sub in mode_requests if (main, sub) == (6, 0)]
+        assert offboard_t
+        before = [t for t in setpoint_t if t < offboard_t[0]]
+        assert len(before) >= 5 and offboard_t[0] - before[0] >= 0.5
+        assert max(b - a for a, b in zip(before, before[1:])) < 0.5
+        assert all(main != 4 or sub != 0 for _, main, sub in mode_requests)  # never ArduCopter's GUIDED number
+    else:
+        assert {(main, sub) for _, main, sub in mode_requests} == {(4.0, 0.0)}  # GUIDED only
 
 
 def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
