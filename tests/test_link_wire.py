@@ -19,8 +19,9 @@ FAST = load_settings(arm_retry_s=0.3, command_timeout_s=0.5, mode_confirm_s=1.5,
                      takeoff_timeout_s=5.0)
 
 
-def _link(vehicle: ScriptedVehicle, tmp_path: Path, **overrides) -> VehicleLink:
-    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog")
+def _link(vehicle: ScriptedVehicle, tmp_path: Path, events: list | None = None, **overrides) -> VehicleLink:
+    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog",
+                       on_event=(events.append if events is not None else None))
     link.open()
     link.wait_vehicle(timeout_s=5)
     return link
@@ -67,8 +68,9 @@ def test_arducopter_arm_retries_until_accepted_and_reports_reasons(tmp_path: Pat
 
 
 def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
+    events: list[str] = []
     with ScriptedVehicle("ardupilot") as vehicle:
-        link = _link(vehicle, tmp_path)
+        link = _link(vehicle, tmp_path, events)
         try:
             result = link.takeoff(2.0)
             assert result.ok, result
@@ -83,8 +85,13 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
             assert link.land().ok
             assert not link.streaming
             assert link.wait_for(lambda s: s.armed is False, 3.0) is not None  # landed and disarmed by itself
+            time.sleep(0.1)
         finally:
             link.close()
+        said = [e for e in events if e.startswith("vehicle now")]
+        assert said == ["vehicle now GUIDED, disarmed", "vehicle now GUIDED, armed", "vehicle now LAND, armed",
+                        "vehicle now LAND, disarmed"]
+        assert "vehicle: Arming motors" in events and events[0] == "link up: ArduPilot system 1"
 
 
 def test_arducopter_mode_reset_after_arming_is_caught(tmp_path: Path) -> None:

@@ -161,11 +161,15 @@ class VehicleLink(FlightOperations):
         if self.tlog is not None:
             self.tlog.write(msg.get_msgbuf())
         with self._changed:
+            mode_before, armed_before = self.tracker.state.mode, self.tracker.state.armed
             events = self.tracker.update(msg, time.monotonic())
+            mode_after, armed_after = self.tracker.state.mode, self.tracker.state.armed
             for event in events:
                 for collector in self._collectors:
                     collector.take(event)
             self._changed.notify_all()
+        if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
+            self.on_event(f"vehicle now {mode_after}, {'armed' if armed_after else 'disarmed'}")
         for event in events:
             if isinstance(event, StatusText):
                 self.on_event(f"vehicle: {event.text}")
