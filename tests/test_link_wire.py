@@ -176,6 +176,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
             silent_from = time.monotonic()
             assert link.wait_for(lambda s: not s.link_ok, 3.0) is not None
             lost_after = time.monotonic() - silent_from
+            assert link.send_setpoint(Setpoint(0.5, 0.0, 0.0, 30.0)) is False  # direct sends refused too
             assert 1.8 <= lost_after <= 2.6
             lost_at = time.monotonic()
             time.sleep(1.0)

@@ -244,17 +244,19 @@ class VehicleLink(FlightOperations):
         except Exception as exc:  # a broken source must not leave the last velocity running
             self.on_event(f"setpoint source failed ({exc}); holding")
             setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
-        if self._stop_first:
-            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
         self.send_setpoint(setpoint)
 
-    def send_setpoint(self, setpoint: Setpoint) -> None:
-        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; tests may too)."""
+    def send_setpoint(self, setpoint: Setpoint) -> bool:
+        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
+        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then."""
         state = self.state
-        if state.system_id is None:
-            return
+        if state.system_id is None or not state.link_ok:
+            return False
+        if self._stop_first:
+            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
         fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
         self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
         self.last_setpoint = setpoint
         self.setpoints_sent += 1
+        return True
