@@ -146,6 +146,21 @@ def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
             assert sp.type_mask == TYPE_MASK_VELOCITY_YAW and math.isfinite(sp.yaw)
 
 
+def test_px4_arms_in_hold_when_left_in_offboard(tmp_path: Path) -> None:
+    """After a failsafe landing PX4 sits in OFFBOARD, disarmed, where arming is refused: arm() goes to Hold."""
+    with ScriptedVehicle("px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            assert link.state.mode == "OFFBOARD"
+            result = link.arm(timeout_s=2.0)
+            assert result.ok, result
+            assert link.state.mode == "LOITER" and link.state.armed
+        finally:
+            link.close()
+        modes = [(m.param2, m.param3) for _, m in vehicle.messages("COMMAND_LONG") if m.command == 176]
+        assert modes == [(4.0, 3.0)]  # AUTO.LOITER (Hold)
+
+
 def test_px4_takeoff_uses_amsl_then_offboard(tmp_path: Path) -> None:
     with ScriptedVehicle("px4") as vehicle:
         link = _link(vehicle, tmp_path)

@@ -125,6 +125,12 @@ class FlightOperations:
             return problem
         if state.armed:
             return OperationResult("arm", ACCEPTED, "already armed")
+        if state.profile.needs_prestream and state.mode == state.profile.velocity_mode and not self.streaming:
+            # PX4 refuses to arm in OFFBOARD without a setpoint stream (and falls back to OFFBOARD by
+            # itself after a failsafe landing): arm in Hold instead
+            step = self.set_mode(state.profile.arm_mode)
+            if not step.ok:
+                return OperationResult("arm", step.status, str(step), step.texts)
         deadline = time.monotonic() + (self.settings.arm_timeout_s if timeout_s is None else timeout_s)
         last: OperationResult | None = None
         while True:
