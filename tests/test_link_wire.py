@@ -232,3 +232,17 @@ def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> No
             assert link.set_mode("GUIDED").status == ACCEPTED
         finally:
             link.close()
+
+
+def test_link_check_command_prints_state_and_commands_nothing(capsys) -> None:
+    from gcs_voice.link.__main__ import main
+
+    with ScriptedVehicle("px4") as vehicle:
+        assert main(["--connect", vehicle.connection, "--seconds", "1.5", "--wait", "5"]) == 0
+        commanded = {m.command for _, m in vehicle.messages("COMMAND_LONG")}
+        assert commanded <= {511, 512}  # telemetry requests only
+        assert not vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
+    out = capsys.readouterr().out
+    assert "link ok | PX4 sys 1 | mode LOITER | disarmed | ON_GROUND | height 0.00 m | heading 0.0 deg" in out
+    assert main(["--connect", "udpin://0.0.0.0:14540"]) == 2
+    assert "MAVSDK" in capsys.readouterr().err
