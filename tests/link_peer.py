@@ -33,12 +33,13 @@ def free_udp_port() -> int:
 
 class ScriptedVehicle:
     def __init__(self, autopilot: str = "ardupilot", arm_refusals: int = 0, heading_deg: float = 0.0,
-                 mav_type: int = mavlink.MAV_TYPE_QUADROTOR, mode_after_arm: int | None = None) -> None:
+                 mav_type: int = mavlink.MAV_TYPE_QUADROTOR, mode_after_arm: int | None = None,
+                 custom_mode: int | None = None) -> None:
         self.port = free_udp_port()
         self.px4 = autopilot == "px4"
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=1, source_component=1,
                                                dialect="ardupilotmega")
-        self.custom_mode = PX4_HOLD if self.px4 else 0
+        self.custom_mode = custom_mode if custom_mode is not None else (PX4_HOLD if self.px4 else 0)
         self.armed = False
         self.arm_refusals = arm_refusals
         self.height_m = 0.0
@@ -143,6 +144,9 @@ class ScriptedVehicle:
             elif msg.param1 == 0:
                 self.armed = False
                 self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
+            elif self.px4 and self.custom_mode == PX4_OFFBOARD and not self._setpoints_recent():
+                self._ack(cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)  # EVENT "No offboard signal"
+                self._text(2, "Arming denied: Resolve system health failures first\t")
             elif self.arm_refusals > 0:
                 self.arm_refusals -= 1
                 self._text(2, "Arm: Need Position Estimate")

@@ -78,3 +78,10 @@ def test_flags_give_connection_and_settings(tmp_path) -> None:
     config.write_text("[safety]\nceiling_m = 3.0\nfloor_m = 0.8\n")
     settings = settings_from_args(parser.parse_args(["--config", str(config), "--floor", "1.0", "--speed", "0.7"]))
     assert (settings.ceiling_m, settings.floor_m, settings.horizontal_speed_m_s) == (3.0, 1.0, 0.7)
+
+
+def test_unwritable_tlog_is_one_line() -> None:
+    from gcs_voice.link import VehicleLink
+
+    with pytest.raises(LinkError, match="cannot write the flight log"):
+        VehicleLink("udpin:127.0.0.1:0", tlog_path="/proc/no/such/dir/flight.tlog")

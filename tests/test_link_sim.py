@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -27,13 +28,16 @@ pytestmark = pytest.mark.slow
 
 
 class Sim:
-    def __init__(self, autopilot: str, tmp_path: Path) -> None:
+    def __init__(self, autopilot: str, tmp_path: Path, *extra: str) -> None:
         self.port = free_udp_port()
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "sim_bridge.cli", "--out", f"udp:127.0.0.1:{self.port}", "--autopilot", autopilot,
-             "--room", "open_field", "--duration", "120"],
+             "--room", "open_field", "--duration", "120", *extra],
             cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
         )
+
+    def ready_line(self) -> str:
+        return self.proc.stdout.readline()
 
     def __enter__(self) -> "Sim":
         return self
@@ -134,10 +138,23 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
             assert disarmed is not None, f"not disarmed 20 s after LAND; (mode, landed, height): {track[::10]}"
     # the tlog holds our setpoints, all in the one encoding
     log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
-    encodings = set()
-    while (msg := log.recv_match(type="SET_POSITION_TARGET_LOCAL_NED")) is not None:
-        encodings.add((msg.coordinate_frame, msg.type_mask))
+    encodings, setpoint_t, mode_requests = set(), [], []
+    while (msg := log.recv_match(type=["SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG"])) is not None:
+        if msg.get_type() == "SET_POSITION_TARGET_LOCAL_NED":
+            encodings.add((msg.coordinate_frame, msg.type_mask))
+            setpoint_t.append(msg._timestamp)
+        elif msg.command == 176:
+            mode_requests.append((msg._timestamp, msg.param2, msg.param3))
     assert encodings == {(1, 2503)}
+    if autopilot == "px4":  # OFFBOARD asked for only after >= 0.5 s of setpoints at > 2 Hz
+        offboard_t = [t for t, main, sub in mode_requests if (main, sub) == (6, 0)]
+        assert offboard_t
+        before = [t for t in setpoint_t if t < offboard_t[0]]
+        assert len(before) >= 5 and offboard_t[0] - before[0] >= 0.5
+        assert max(b - a for a, b in zip(before, before[1:])) < 0.5
+        assert all(main != 4 or sub != 0 for _, main, sub in mode_requests)  # never ArduCopter's GUIDED number
+    else:
+        assert {(main, sub) for _, main, sub in mode_requests} == {(4.0, 0.0)}  # GUIDED only
 
 
 def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
@@ -173,3 +190,16 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
     assert after and (after[0].vx, after[0].vy, after[0].vz) == (0.0, 0.0, 0.0)
     before = [m for t, m in sent if t < paused_wall]
     assert math.hypot(before[-1].vx, before[-1].vy) == pytest.approx(settings.horizontal_speed_m_s)
+
+
+def test_tcp_client_to_the_simulator(tmp_path: Path) -> None:
+    """``--connect tcp:HOST:PORT`` (like SITL's 5760): state and telemetry arrive, commands are answered."""
+    with Sim("ardupilot", tmp_path, "--tcp", "0") as sim:
+        line = sim.ready_line()
+        match = re.search(r"tcp (127\.0\.0\.1:\d+)", line)
+        assert match, line
+        with VehicleLink(f"tcp:{match.group(1)}") as link:
+            state = link.connect(timeout_s=10)
+            assert state.autopilot == "ArduPilot"
+            assert link.wait_for(lambda s: s.heading_deg is not None and s.height_m is not None, 3.0) is not None
+            assert link.set_mode("GUIDED").ok

@@ -19,8 +19,9 @@ FAST = load_settings(arm_retry_s=0.3, command_timeout_s=0.5, mode_confirm_s=1.5,
                      takeoff_timeout_s=5.0)
 
 
-def _link(vehicle: ScriptedVehicle, tmp_path: Path, **overrides) -> VehicleLink:
-    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog")
+def _link(vehicle: ScriptedVehicle, tmp_path: Path, events: list | None = None, **overrides) -> VehicleLink:
+    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog",
+                       on_event=(events.append if events is not None else None))
     link.open()
     link.wait_vehicle(timeout_s=5)
     return link
@@ -41,7 +42,7 @@ def test_heartbeat_identity_and_telemetry_request(tmp_path: Path) -> None:
         assert (beat.type, beat.get_srcSystem(), beat.get_srcComponent()) == (mavutil.mavlink.MAV_TYPE_GCS, 255, 190)
         asked = {int(m.param1): m.param2 for _, m in vehicle.messages("COMMAND_LONG") if m.command == 511}
         assert asked == {32: pytest.approx(1e5), 30: pytest.approx(1e5), 245: pytest.approx(1e6),
-                         33: pytest.approx(5e5)}
+                         33: pytest.approx(5e5), 132: pytest.approx(1e5)}
         # the .tlog holds both directions and reads back with pymavlink
         log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
         senders = set()
@@ -67,8 +68,9 @@ def test_arducopter_arm_retries_until_accepted_and_reports_reasons(tmp_path: Pat
 
 
 def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
+    events: list[str] = []
     with ScriptedVehicle("ardupilot") as vehicle:
-        link = _link(vehicle, tmp_path)
+        link = _link(vehicle, tmp_path, events)
         try:
             result = link.takeoff(2.0)
             assert result.ok, result
@@ -83,8 +85,13 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
             assert link.land().ok
             assert not link.streaming
             assert link.wait_for(lambda s: s.armed is False, 3.0) is not None  # landed and disarmed by itself
+            time.sleep(0.1)
         finally:
             link.close()
+        said = [e for e in events if e.startswith("vehicle now")]
+        assert said == ["vehicle now GUIDED, disarmed", "vehicle now GUIDED, armed", "vehicle now LAND, armed",
+                        "vehicle now LAND, disarmed"]
+        assert "vehicle: Arming motors" in events and events[0] == "link up: ArduPilot system 1"
 
 
 def test_arducopter_mode_reset_after_arming_is_caught(tmp_path: Path) -> None:
@@ -139,6 +146,21 @@ def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
             assert sp.type_mask == TYPE_MASK_VELOCITY_YAW and math.isfinite(sp.yaw)
 
 
+def test_px4_arms_in_hold_when_left_in_offboard(tmp_path: Path) -> None:
+    """After a failsafe landing PX4 sits in OFFBOARD, disarmed, where arming is refused: arm() goes to Hold."""
+    with ScriptedVehicle("px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            assert link.state.mode == "OFFBOARD"
+            result = link.arm(timeout_s=2.0)
+            assert result.ok, result
+            assert link.state.mode == "LOITER" and link.state.armed
+        finally:
+            link.close()
+        modes = [(m.param2, m.param3) for _, m in vehicle.messages("COMMAND_LONG") if m.command == 176]
+        assert modes == [(4.0, 3.0)]  # AUTO.LOITER (Hold)
+
+
 def test_px4_takeoff_uses_amsl_then_offboard(tmp_path: Path) -> None:
     with ScriptedVehicle("px4") as vehicle:
         link = _link(vehicle, tmp_path)
@@ -169,6 +191,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
             silent_from = time.monotonic()
             assert link.wait_for(lambda s: not s.link_ok, 3.0) is not None
             lost_after = time.monotonic() - silent_from
+            assert link.send_setpoint(Setpoint(0.5, 0.0, 0.0, 30.0)) is False  # direct sends refused too
             assert 1.8 <= lost_after <= 2.6
             lost_at = time.monotonic()
             time.sleep(1.0)
@@ -187,7 +210,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         assert first.yaw == pytest.approx(math.radians(30.0), abs=1e-6)
         assert after[-1].vx == pytest.approx(0.5 * math.cos(math.radians(30)), abs=1e-6)
         intervals = [t for t, m in vehicle.messages("COMMAND_LONG") if m.command == 511]
-        assert len(intervals) == 8 and intervals[-1] > lost_at  # asked again after the link came back
+        assert len(intervals) == 10 and intervals[-1] > lost_at  # asked again after the link came back
 
 
 def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> None:
@@ -209,3 +232,17 @@ def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> No
             assert link.set_mode("GUIDED").status == ACCEPTED
         finally:
             link.close()
+
+
+def test_link_check_command_prints_state_and_commands_nothing(capsys) -> None:
+    from gcs_voice.link.__main__ import main
+
+    with ScriptedVehicle("px4") as vehicle:
+        assert main(["--connect", vehicle.connection, "--seconds", "1.5", "--wait", "5"]) == 0
+        commanded = {m.command for _, m in vehicle.messages("COMMAND_LONG")}
+        assert commanded <= {511, 512}  # telemetry requests only
+        assert not vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
+    out = capsys.readouterr().out
+    assert "link ok | PX4 sys 1 | mode LOITER | disarmed | ON_GROUND | height 0.00 m | heading 0.0 deg" in out
+    assert main(["--connect", "udpin://0.0.0.0:14540"]) == 2
+    assert "MAVSDK" in capsys.readouterr().err

@@ -10,7 +10,6 @@ the outcome measured from telemetry (height, heading, displacement) and the oper
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path

@@ -125,6 +125,12 @@ class FlightOperations:
             return problem
         if state.armed:
             return OperationResult("arm", ACCEPTED, "already armed")
+        if state.profile.needs_prestream and state.mode == state.profile.velocity_mode and not self.streaming:
+            # PX4 refuses to arm in OFFBOARD without a setpoint stream (and falls back to OFFBOARD by
+            # itself after a failsafe landing): arm in Hold instead
+            step = self.set_mode(state.profile.arm_mode)
+            if not step.ok:
+                return OperationResult("arm", step.status, str(step), step.texts)
         deadline = time.monotonic() + (self.settings.arm_timeout_s if timeout_s is None else timeout_s)
         last: OperationResult | None = None
         while True:
@@ -249,6 +255,9 @@ class FlightOperations:
                                    retries=0)
             if ack is None or not ack.accepted:
                 refused.append(str(message_id))
+        # optional: a downward rangefinder, fast enough for the floor rule (refused or absent is fine)
+        self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR),
+                                                             1e6 / self.settings.local_position_ned_hz), retries=0)
         self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),), retries=0)
         self._telemetry_requested = True
         if refused:
