@@ -96,6 +96,7 @@ class Vehicle:
     fence_stops: int = 0
 
     def __post_init__(self) -> None:
+        self._state: Any = None
         self._hold = _Hold(yaw_rad=self.state.yaw_rad)
         self._yaw_target_rad: float = self.state.yaw_rad
         self._takeoff_alt_m = 0.0
@@ -111,7 +112,10 @@ class Vehicle:
     # ----------------------------------------------------------------- state
     @property
     def state(self) -> Any:
-        return self.multicopter.state
+        """The physics state, read once per tick (building it costs more than everything that reads it)."""
+        if self._state is None:
+            self._state = self.multicopter.state
+        return self._state
 
     @property
     def armed(self) -> bool:
@@ -141,12 +145,14 @@ class Vehicle:
     # ----------------------------------------------------------------- commands
     def arm(self) -> None:
         self.multicopter.set_armed(True)
+        self._state = None
         self._armed_idle_since_s = self.time_s
         if self.behaviour is not Behaviour.TAKEOFF:
             self.behaviour = Behaviour.IDLE if self.landed else Behaviour.HOLD
 
     def disarm(self) -> None:
         self.multicopter.set_armed(False)
+        self._state = None
         self._armed_idle_since_s = None
         self.behaviour = Behaviour.IDLE
 
@@ -238,6 +244,7 @@ class Vehicle:
         if target is not None:
             self.multicopter.set_target(target)
         self.multicopter.step(dt_s)
+        self._state = None
         self.time_s += dt_s
         events.extend(self._after_step())
         return events
