@@ -96,6 +96,7 @@ class Vehicle:
     fence_stops: int = 0
 
     def __post_init__(self) -> None:
+        self._state: Any = None
         self._hold = _Hold(yaw_rad=self.state.yaw_rad)
         self._yaw_target_rad: float = self.state.yaw_rad
         self._takeoff_alt_m = 0.0
@@ -111,7 +112,10 @@ class Vehicle:
     # ----------------------------------------------------------------- state
     @property
     def state(self) -> Any:
-        return self.multicopter.state
+        """The physics state, read once per tick (building it costs more than everything that reads it)."""
+        if self._state is None:
+            self._state = self.multicopter.state
+        return self._state
 
     @property
     def armed(self) -> bool:
@@ -141,12 +145,14 @@ class Vehicle:
     # ----------------------------------------------------------------- commands
     def arm(self) -> None:
         self.multicopter.set_armed(True)
+        self._state = None
         self._armed_idle_since_s = self.time_s
         if self.behaviour is not Behaviour.TAKEOFF:
             self.behaviour = Behaviour.IDLE if self.landed else Behaviour.HOLD
 
     def disarm(self) -> None:
         self.multicopter.set_armed(False)
+        self._state = None
         self._armed_idle_since_s = None
         self.behaviour = Behaviour.IDLE
 
@@ -166,7 +172,9 @@ class Vehicle:
         self.behaviour = Behaviour.HOLD if not (self.landed and self.behaviour is Behaviour.IDLE) else Behaviour.IDLE
 
     def land(self) -> None:
+        """Brake, then descend where it stopped (never toward an older hold point)."""
         self._touchdown_s = None
+        self._hold = _Hold(point_ned_m=None, yaw_rad=self._yaw_target_rad)
         self.behaviour = Behaviour.LAND
 
     def return_to_launch(self) -> float:
@@ -238,6 +246,7 @@ class Vehicle:
         if target is not None:
             self.multicopter.set_target(target)
         self.multicopter.step(dt_s)
+        self._state = None
         self.time_s += dt_s
         events.extend(self._after_step())
         return events
@@ -308,6 +317,9 @@ class Vehicle:
         if self.landed:
             return ControlTarget(vel_ned_m_s=(0.0, 0.0, self.limits.land_speed_m_s), yaw_rad=self._hold.yaw_rad)
         if self._hold.point_ned_m is None:
+            vel_now = self.state.vel_ned_m_s
+            if math.hypot(float(vel_now[0]), float(vel_now[1])) > HOLD_CAPTURE_SPEED_M_S:
+                return ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=self._hold.yaw_rad)   # brake first
             self._hold.point_ned_m = pos
         hold_n, hold_e, _ = self._hold.point_ned_m
         vel = (POSITION_TO_VELOCITY_PER_S * (hold_n - pos[0]), POSITION_TO_VELOCITY_PER_S * (hold_e - pos[1]),
