@@ -63,10 +63,14 @@ class WhisperRecognizer:
         return cls(dictionaries, model=model, mode=mode)
 
     def start_stream(self, lang: str | None = None) -> WhisperStream:
-        if lang not in (None, "auto") and lang not in self.dictionaries:
+        """``lang`` forces the language; None or "auto" detects it per utterance among the loaded ones."""
+        if lang in (None, "auto"):
+            fixed = self.languages[0] if len(self.languages) == 1 else None
+        elif lang in self.dictionaries:
+            fixed = lang
+        else:
             raise ModelError(f"no dictionary loaded for {lang!r} (loaded: {', '.join(self.languages)})")
-        return WhisperStream(self, None if lang in (None, "auto") and len(self.languages) > 1 else
-                             (lang if lang not in (None, "auto") else self.languages[0]))
+        return WhisperStream(self, fixed)
 
     # -- decoding ---------------------------------------------------------------------------------
     def _tokenizer(self, lang: str):
