@@ -88,8 +88,11 @@ def main() -> None:
     rows.append(run("sphinx grammar, no garbage branch", "sphinx", "en", real))
     sphinx["garbage_words"] = garbage
     rows.append(run("sphinx free (n-gram LM)", "sphinx", "en", real, mode="free"))
-    rows.append(run(f"whisper base int8, en forced (every {args.whisper_every}th file)", "whisper", "en",
-                    real_corpus(args.speech, args.whisper_every), model=args.whisper_model))
+    some = real_corpus(args.speech, args.whisper_every)
+    rows.append(run(f"whisper base int8, en, dictionary prompt (every {args.whisper_every}th file)", "whisper", "en",
+                    some, model=args.whisper_model))
+    rows.append(run(f"whisper base int8, en, no prompt (mode free; every {args.whisper_every}th file)", "whisper",
+                    "en", some, model=args.whisper_model, mode="free"))
     rows.append(run("vosk small-ko grammar (espeak-ng Korean)", "vosk", "ko", korean_corpus()))
 
     lines = [
