@@ -119,7 +119,7 @@ def recognise_one(recognizer, item: Item) -> dict:
     audio_s = len(pcm) / 2 / 16_000
     return {
         "hypotheses": [[h.text, h.confidence, h.score] for h in rec.hypotheses],
-        "lang": rec.lang, "extra": dict(rec.extra), "audio_s": audio_s,
+        "engine": rec.engine, "lang": rec.lang, "extra": dict(rec.extra), "audio_s": audio_s,
         "latency_s": clock - n_chunks * CHUNK_S, "busy_s": busy,
     }
 
@@ -151,9 +151,10 @@ def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, 
 
 # -- stage 2: decide and score ----------------------------------------------------------------------
 def recognition(engine: str, rec: dict) -> Recognition:
+    """A cached record back as a Recognition; ``engine`` is the real engine name (for its thresholds)."""
     return Recognition(
         hypotheses=tuple(Hypothesis(t, c, s) for t, c, s in rec["hypotheses"]),
-        engine=engine, lang=rec.get("lang"), audio_s=rec.get("audio_s", 0.0), extra=rec.get("extra", {}),
+        engine=rec.get("engine", engine), lang=rec.get("lang"), audio_s=rec.get("audio_s", 0.0), extra=rec.get("extra", {}),
     )
 
 
