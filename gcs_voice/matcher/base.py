@@ -173,7 +173,11 @@ class Matcher:
             key=lambda c: (c.distance, c.dictionary.language != wanted_lang, c.rank, order[id(c)])
         )
         best = candidates[0]
-        rival = next((c for c in candidates if c.phrase.action != best.phrase.action), None)
+        # Ambiguity is judged within the winning text: a lower-ranked alternative of another class is
+        # the engine's doubt, already priced by alt_penalty and min_confidence.
+        rival = next(
+            (c for c in candidates if c.rank == best.rank and c.phrase.action != best.phrase.action), None
+        )
         return Ranking(best, rival, reason)
 
     # -- reasons ---------------------------------------------------------------------------------
