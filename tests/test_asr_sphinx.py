@@ -44,6 +44,7 @@ def test_out_of_domain_speech_is_not_forced_into_a_command(grammar, tmp_path, sa
     assert result.extra["out_of_grammar"] == 1.0
 
 
+@pytest.mark.slow
 def test_real_recordings(grammar, real_speech_dir):
     """A few of the real speakers: most commands right, no non-command accepted as one of them."""
     from gcs_voice.audio import read_wav

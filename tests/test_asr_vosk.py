@@ -83,6 +83,8 @@ def test_out_of_vocabulary_speech_yields_unknown_or_nothing_of_it(grammar, tmp_p
         assert set(h.text.split()) <= vocabulary
     assert "<UNK>" not in result.text
     assert result.extra["unknown_words"] >= 0.0
+    for key in ("min_word_confidence", "mean_word_confidence"):
+        assert 0.0 <= result.extra.get(key, 0.0) <= 1.0
 
 
 @pytest.mark.slow

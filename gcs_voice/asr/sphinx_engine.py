@@ -49,7 +49,8 @@ class SphinxRecognizer:
         self.settings = engine_settings("sphinx")
         model_dir = sphinx_model_dir(model)
         config = Config(hmm=str(model_dir / "en-us"), dict=str(model_dir / "cmudict-en-us.dict"),
-                        lm=None, loglevel="FATAL")
+                        lm=None, loglevel="FATAL", beam=float(self.settings.get("beam", 1e-48)),
+                        wbeam=float(self.settings.get("wbeam", 7e-29)))
         try:
             self.decoder = Decoder(config)
         except Exception as exc:  # pocketsphinx raises RuntimeError with no detail
@@ -70,6 +71,10 @@ class SphinxRecognizer:
             self.decoder.add_jsgf_string("grammar", self._grammar())
             self.search = "grammar"
         self.decoder.activate_search(self.search)
+        # Every utterance starts from the model's initial cepstral mean: otherwise live CMN carries
+        # over and the previous utterance changes the next result (measured: "stop" after "go up"
+        # heard as "go back").
+        self.initial_cmn = self.decoder.get_cmn()
         self._open: SphinxStream | None = None
 
     @classmethod
@@ -129,6 +134,7 @@ class SphinxStream:
         self._done = True
         rec._open = None
         audio_s = len(self._pcm) / 2 / SAMPLE_RATE
+        decoder.set_cmn(rec.initial_cmn)
         decoder.start_utt()
         if len(self._pcm) >= 2:
             decoder.process_raw(bytes(self._pcm[: len(self._pcm) // 2 * 2]), False, True)
