@@ -121,3 +121,19 @@ def test_a_push_no_vehicle_can_fight_ends_in_the_safety_net_not_in_nan() -> None
     assert max(math.hypot(*s.vel_ned_m_s[:2]) for s in states) < 3.0 * 5.0 + 1.0
     assert PHYSICS_FAULT_EVENT in [event.obstacle_name for event in vehicle.pop_events()]
     assert not vehicle.state.armed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("physics_hz", [200.0, 400.0])
+def test_touchdowns_come_to_rest_at_other_physics_rates(physics_hz) -> None:
+    vehicle = Multicopter(load_room("open_field"), physics_hz=physics_hz)
+    vehicle.set_armed(True)
+    vehicle.set_target(ControlTarget(pos_ned_m=(0.0, 0.0, HOVER_DOWN_M)))
+    _fly(vehicle, 4.0)
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 5.0, 2.5), yaw_rate_rad_s=1.5))
+    assert_sane_touchdown(vehicle, 6.0, 1.5)
+
+
+def test_physics_rates_whose_ground_contact_is_unstable_are_refused() -> None:
+    with pytest.raises(ValueError, match="physics_hz"):
+        Multicopter(physics_hz=100.0)
