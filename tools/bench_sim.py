@@ -329,8 +329,8 @@ def main(argv: list[str] | None = None) -> int:
         "to about 38 deg), 3000 N/m and 100 N s/m each, skid friction 0.8 static / 0.5 sliding, plus frame "
         "contact points (motor pods, top) so a tipped vehicle lies on the floor instead of sinking through it.",
         "- Touchdown (`control.toml` [landing]): touching the ground and not asked to climb, the controller "
-        "levels the vehicle, clears its integrators and spools the collective down to idle in 0.5 s; below "
-        "0.3 m it limits the tilt to 10 deg. `Multicopter` cuts the motors (disarms) if it is tipped past 60 "
+        "levels the vehicle, clears its integrators and spools the collective down to idle in 0.5 s (back up "
+        "to 0.6 g while tilted over 8 deg, to level first); below 0.3 m it limits the tilt to 10 deg. `Multicopter` cuts the motors (disarms) if it is tipped past 60 "
         "deg on the ground, and resets the vehicle to rest, disarmed, on a non-physical state (NaN, under the "
         "floor, climbing at 3x the vertical limit, or armed and over 3x any speed limit); both are reported as "
         "events (STATUSTEXT).",
