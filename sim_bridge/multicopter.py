@@ -3,6 +3,9 @@
 This is everything below MAVLink. The vehicle layer owns one ``Multicopter``, calls ``step(dt_s)`` from its
 loop, reads ``state``, sends ``set_target(ControlTarget)`` and turns ``pop_events()`` into STATUSTEXT.
 Units: SI, NED relative to home (the room's start spot, on the floor), yaw 0 = north, clockwise positive.
+Besides contacts, two events disarm the vehicle: ``TIPPED_OVER_EVENT`` (armed, touching something and tilted
+past 60 deg: motors cut, as ArduPilot's crash check) and ``PHYSICS_FAULT_EVENT`` (a non-physical state such as
+NaN: the vehicle is put back at rest where it last was sane, so nothing propagates to MAVLink).
 """
 
 from __future__ import annotations
