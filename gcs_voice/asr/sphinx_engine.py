@@ -70,6 +70,10 @@ class SphinxRecognizer:
             self.decoder.add_jsgf_string("grammar", self._grammar())
             self.search = "grammar"
         self.decoder.activate_search(self.search)
+        # Every utterance starts from the model's initial cepstral mean: otherwise live CMN carries
+        # over and the previous utterance changes the next result (measured: "stop" after "go up"
+        # heard as "go back").
+        self.initial_cmn = self.decoder.get_cmn()
         self._open: SphinxStream | None = None
 
     @classmethod
@@ -129,6 +133,7 @@ class SphinxStream:
         self._done = True
         rec._open = None
         audio_s = len(self._pcm) / 2 / SAMPLE_RATE
+        decoder.set_cmn(rec.initial_cmn)
         decoder.start_utt()
         if len(self._pcm) >= 2:
             decoder.process_raw(bytes(self._pcm[: len(self._pcm) // 2 * 2]), False, True)

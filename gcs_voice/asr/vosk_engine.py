@@ -8,7 +8,8 @@ grammar words missing from the model's vocabulary; we check each word with ``vos
 warn naming them, and leave out every phrase that contains one (dropping a word could turn
 "turn right" into "right", another command). Free mode decodes with the model's own language model.
 Alternatives come from ``SetMaxAlternatives``; their confidence is the posterior among the n-best
-(softmax of Vosk's scores).
+(softmax of Vosk's scores). Word confidences (``min_word_confidence``, ``mean_word_confidence`` in
+``extra``) come from a second recogniser without alternatives, as Vosk gives them only then.
 """
 
 from __future__ import annotations
@@ -71,12 +72,17 @@ class _LanguageModel:
             if not usable:
                 raise ModelError(f"vosk: no phrase of {dictionary.path} is in the vocabulary of {model_dir}")
             self.grammar = list(dict.fromkeys(usable)) + ([self.unknown] if self.unknown else [])
-            self.recognizer = KaldiRecognizer(self.model, SAMPLE_RATE, json.dumps(self.grammar, ensure_ascii=False))
-        else:
-            self.recognizer = KaldiRecognizer(self.model, SAMPLE_RATE)
         settings = engine_settings("vosk")
+        args = (self.model, SAMPLE_RATE) + ((json.dumps(self.grammar, ensure_ascii=False),) if self.grammar else ())
+        self.recognizer = KaldiRecognizer(*args)
         self.recognizer.SetMaxAlternatives(int(settings.get("max_alternatives", 5)))
         self.recognizer.SetWords(True)
+        # Vosk gives per-word confidences (MBR) only without alternatives: a second, parallel
+        # recogniser on the same audio provides them (decoding here costs ~50 ms per utterance).
+        self.word_recognizer = None
+        if settings.get("word_confidences", True):
+            self.word_recognizer = KaldiRecognizer(*args)
+            self.word_recognizer.SetWords(True)
 
 
 def _spelling(word: str, find_word) -> str | None:
@@ -132,6 +138,8 @@ class VoskStream:
         self._samples = 0
         self._done = False
         model.recognizer.Reset()
+        if model.word_recognizer is not None:
+            model.word_recognizer.Reset()
 
     def accept(self, pcm: bytes) -> None:
         if self._done:
@@ -139,6 +147,8 @@ class VoskStream:
         if pcm:
             self._samples += len(pcm) // 2
             self._model.recognizer.AcceptWaveform(pcm)
+            if self._model.word_recognizer is not None:
+                self._model.word_recognizer.AcceptWaveform(pcm)
 
     def finish(self) -> Recognition:
         if self._done:
@@ -166,4 +176,10 @@ class VoskStream:
         extra = {"unknown_words": unknown_words}
         if len(scores) > 1:
             extra["nbest_margin"] = scores[0] - scores[1]
+        if self._model.word_recognizer is not None:
+            words = json.loads(self._model.word_recognizer.FinalResult()).get("result", [])
+            confs = [float(w["conf"]) for w in words if w.get("word") != unknown and "conf" in w]
+            if confs:
+                extra["min_word_confidence"] = min(confs)
+                extra["mean_word_confidence"] = sum(confs) / len(confs)
         return Recognition(tuple(hypotheses), self._name, self._model.lang, self._samples / SAMPLE_RATE, extra)

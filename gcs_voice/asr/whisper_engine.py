@@ -3,7 +3,8 @@
 Short commands make Whisper hallucinate (repetition loops, invented sentences on noise), so each
 utterance is decoded in ONE 30 s window with: a few new tokens at most (``max_new_tokens``), no
 previous-text conditioning, no timestamps, the dictionary phrases as the prompt, the language forced
-when known. We call CTranslate2's ``generate`` ourselves (as faster-whisper's
+when known. Whisper has no grammar: ``mode="grammar"`` means the prompt bias, ``"free"`` no prompt.
+We call CTranslate2's ``generate`` ourselves (as faster-whisper's
 ``generate_with_fallback`` does) to get the beam's n-best list, which ``transcribe`` hides.
 ``--lang auto`` picks, per utterance, the most probable of the loaded dictionaries' languages.
 Rejection evidence in ``Recognition.extra``: ``no_speech_prob``, ``avg_logprob``,
@@ -63,10 +64,14 @@ class WhisperRecognizer:
         return cls(dictionaries, model=model, mode=mode)
 
     def start_stream(self, lang: str | None = None) -> WhisperStream:
-        if lang not in (None, "auto") and lang not in self.dictionaries:
+        """``lang`` forces the language; None or "auto" detects it per utterance among the loaded ones."""
+        if lang in (None, "auto"):
+            fixed = self.languages[0] if len(self.languages) == 1 else None
+        elif lang in self.dictionaries:
+            fixed = lang
+        else:
             raise ModelError(f"no dictionary loaded for {lang!r} (loaded: {', '.join(self.languages)})")
-        return WhisperStream(self, None if lang in (None, "auto") and len(self.languages) > 1 else
-                             (lang if lang not in (None, "auto") else self.languages[0]))
+        return WhisperStream(self, fixed)
 
     # -- decoding ---------------------------------------------------------------------------------
     def _tokenizer(self, lang: str):
@@ -83,7 +88,7 @@ class WhisperRecognizer:
         if lang not in self._prompts:
             tokenizer = self._tokenizer(lang)
             previous: list[int] = []
-            if self.settings.get("prompt_with_dictionary", True):
+            if self.mode == "grammar" and self.settings.get("prompt_with_dictionary", True):
                 words = ", ".join(self.dictionaries[lang].vocabulary()) + "."
                 previous = tokenizer.encode(" " + words)
             self._prompts[lang] = self.model.get_prompt(tokenizer, previous, without_timestamps=True)

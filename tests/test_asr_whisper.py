@@ -1,0 +1,68 @@
+"""Whisper engine on ../shared/models/faster-whisper-base (few decodes: ~1-5 s each here)."""
+
+from __future__ import annotations
+
+import pytest
+
+from gcs_voice.asr.registry import load_recognizer
+from gcs_voice.dictionary import load_language
+from gcs_voice.errors import ModelError
+from gcs_voice.text import normalize_text
+from tests.asr_speech import pcm_of
+
+pytest.importorskip("faster_whisper")
+EN, ES = load_language("en"), load_language("es")
+
+
+@pytest.fixture(scope="module")
+def whisper(whisper_model_dir):
+    return load_recognizer("whisper", [EN, ES], model=str(whisper_model_dir))
+
+
+def _recognise(recognizer, pcm, lang):
+    stream = recognizer.start_stream(lang)
+    stream.accept(pcm)
+    return stream.finish()
+
+
+@pytest.mark.slow
+def test_english_command_with_alternatives_and_evidence(whisper, tmp_path):
+    result = _recognise(whisper, pcm_of("turn left", tmp_path), "en")
+    assert normalize_text(result.text) == "turn left"
+    assert result.lang == "en"
+    for key in ("no_speech_prob", "avg_logprob", "compression_ratio", "language_probability"):
+        assert key in result.extra
+    assert result.extra["no_speech_prob"] < 0.5
+
+
+@pytest.mark.slow
+def test_spanish_forced(whisper, tmp_path):
+    result = _recognise(whisper, pcm_of("izquierda", tmp_path, "es"), "es")
+    assert result.lang == "es"
+    assert normalize_text(result.text) == "izquierda"
+
+
+@pytest.mark.slow
+def test_silence_is_flagged_and_output_stays_short(whisper):
+    result = _recognise(whisper, bytes(16000 * 2), "en")
+    # With the dictionary as prompt, Whisper may still utter a word on silence: the evidence says so.
+    assert result.extra["no_speech_prob"] > 0.5
+    assert all(len(h.text.split()) <= 4 for h in result.hypotheses), "max_new_tokens bounds the output"
+
+
+@pytest.mark.slow
+def test_auto_language_on_real_english(whisper, real_speech_dir):
+    from gcs_voice.audio import read_wav
+
+    result = _recognise(whisper, read_wav(real_speech_dir / "en/stop/stop_c518d1b1_nohash_0.wav"), "auto")
+    assert result.lang == "en"
+    assert 0.0 < result.extra["language_probability"] <= 1.0
+    assert normalize_text(result.text).startswith("stop")
+
+
+def test_missing_model_is_a_model_error(tmp_path):
+    with pytest.raises(ModelError, match="does not exist"):
+        load_recognizer("whisper", [EN], model=str(tmp_path / "nope"))
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(ModelError, match="not a faster-whisper model"):
+        load_recognizer("whisper", [EN], model=str(tmp_path / "empty"))

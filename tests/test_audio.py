@@ -1,0 +1,151 @@
+"""Audio input: WAV formats and rates come out as the same 16 kHz mono PCM; bad input is one AudioError."""
+
+from __future__ import annotations
+
+import io
+import subprocess
+
+import numpy as np
+import pytest
+
+from gcs_voice.audio import AudioChunk, microphone_chunks, pcm_to_chunks, read_pcm, read_wav, resample, wav_to_chunks
+from gcs_voice.errors import AudioError
+from gcs_voice.vad import frame_dbfs, load_vad_settings, segment_utterances
+from tests.asr_speech import need, say
+
+RATE = 16_000
+
+
+@pytest.fixture(scope="module")
+def reference(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("audio")
+    path = say("turn left", folder / "ref.wav")
+    return path, np.frombuffer(read_wav(path), "<i2").astype(np.float64)
+
+
+def _sox(src, dst, *opts):
+    need("sox")
+    subprocess.run(["sox", str(src), *opts, str(dst)], check=True)
+    return dst
+
+
+@pytest.mark.parametrize("opts", [
+    ("-b", "8", "-e", "unsigned-integer"),
+    ("-b", "24"),
+    ("-b", "32", "-e", "signed-integer"),
+    ("-b", "32", "-e", "floating-point"),
+    ("-b", "64", "-e", "floating-point"),
+    ("-r", "44100", "-c", "2"),
+    ("-r", "8000"),
+    ("-r", "22050", "-b", "24", "-c", "2"),
+], ids=lambda o: "_".join(o))
+def test_formats_and_rates_become_the_same_16k_mono_signal(reference, tmp_path, opts):
+    ref_path, ref = reference
+    converted = _sox(ref_path, tmp_path / "x.wav", *opts)
+    got = np.frombuffer(read_wav(converted), "<i2").astype(np.float64)
+    assert abs(got.size - ref.size) <= 2, "duration must survive resampling"
+    n = min(got.size, ref.size)
+    corr = np.corrcoef(got[:n], ref[:n])[0, 1]
+    # 8 kHz keeps only the band below 4 kHz, 8-bit adds quantisation noise: still the same signal.
+    assert corr > (0.8 if "8000" in opts else 0.97), corr
+
+
+def test_16k_mono_16bit_passes_through_unchanged(reference):
+    path, ref = reference
+    assert read_wav(path) == ref.astype("<i2").tobytes()
+
+
+def test_resample_keeps_a_tone_at_its_frequency():
+    t = np.arange(44_100) / 44_100
+    tone = 0.5 * np.sin(2 * np.pi * 440.0 * t)
+    out = resample(tone, 44_100, RATE)
+    assert out.size == RATE
+    peak_hz = np.argmax(np.abs(np.fft.rfft(out))) * RATE / out.size
+    assert abs(peak_hz - 440.0) <= 1.0
+
+
+def test_missing_file(tmp_path):
+    with pytest.raises(AudioError, match="no such file"):
+        read_wav(tmp_path / "nope.wav")
+
+
+def test_not_a_wav(tmp_path):
+    path = tmp_path / "notes.wav"
+    path.write_text("these are not samples")
+    with pytest.raises(AudioError, match="not a WAV file"):
+        read_wav(path)
+
+
+def test_empty_wav(tmp_path):
+    need("sox")
+    path = tmp_path / "empty.wav"
+    subprocess.run(["sox", "-n", "-r", "16000", "-c", "1", "-b", "16", str(path), "trim", "0", "0"], check=True)
+    with pytest.raises(AudioError, match="empty"):
+        read_wav(path)
+
+
+def test_unsupported_sample_format(reference, tmp_path):
+    path = _sox(reference[0], tmp_path / "alaw.wav", "-e", "a-law")
+    with pytest.raises(AudioError, match="unsupported WAV sample format"):
+        read_wav(path)
+
+
+def test_stdin_pcm():
+    assert read_pcm(io.BytesIO(b"\x01\x00\x02\x00")) == b"\x01\x00\x02\x00"
+    with pytest.raises(AudioError, match="odd number"):
+        read_pcm(io.BytesIO(b"\x01\x00\x02"))
+    with pytest.raises(AudioError, match="no audio"):
+        read_pcm(io.BytesIO(b""))
+    with pytest.raises(AudioError, match="WAV file"):
+        read_pcm(io.BytesIO(b"RIFF\x00\x00\x00\x00WAVE"))
+
+
+def test_chunks_cover_the_file_in_order(reference):
+    path, ref = reference
+    chunks = list(wav_to_chunks(path, chunk_s=0.1))
+    assert all(isinstance(c, AudioChunk) for c in chunks)
+    assert b"".join(c.pcm for c in chunks) == ref.astype("<i2").tobytes()
+    assert [round(c.start_s, 3) for c in chunks[:3]] == [0.0, 0.1, 0.2]
+
+
+def test_no_microphone_is_one_audio_error():
+    with pytest.raises(AudioError, match="microphone unavailable"):
+        next(microphone_chunks(device=9999))
+
+
+def _silence(seconds: float) -> bytes:
+    return bytes(int(RATE * seconds) * 2)
+
+
+def test_segmenter_finds_each_utterance_with_its_times(tmp_path):
+    words = [read_wav(say(w, tmp_path / f"{w}.wav")) for w in ("up", "turn right", "stop")]
+    gaps = [0.5, 1.0, 0.8, 0.7]
+    pcm, expected, t = _silence(gaps[0]), [], gaps[0]
+    for word, gap in zip(words, gaps[1:]):
+        expected.append((t, t + len(word) / 2 / RATE))
+        pcm += word + _silence(gap)
+        t += len(word) / 2 / RATE + gap
+    # low background noise, as a room has
+    noise = (np.random.default_rng(1).normal(0, 30, len(pcm) // 2)).astype("<i2")
+    noisy = (np.frombuffer(pcm, "<i2").astype(np.int32) + noise).clip(-32768, 32767).astype("<i2").tobytes()
+    utterances = list(segment_utterances(pcm_to_chunks(noisy)))
+    assert len(utterances) == 3
+    for utt, (start, end) in zip(utterances, expected):
+        # espeak pads its words with a little silence; the segmenter keeps a pre-roll
+        assert start - 0.35 <= utt.start_s <= start + 0.25, (utt.start_s, start)
+        assert end - 0.25 <= utt.end_s <= end + load_vad_settings().hangover_s, (utt.end_s, end)
+
+
+def test_segmenter_ignores_silence_and_clicks():
+    click = (np.ones(int(RATE * 0.03)) * 20000).astype("<i2").tobytes()
+    pcm = _silence(1.0) + click + _silence(1.0)
+    assert list(segment_utterances(pcm_to_chunks(pcm))) == []
+    assert frame_dbfs(_silence(0.02)) < -100
+
+
+def test_segmenter_cuts_overlong_speech():
+    rng = np.random.default_rng(2)
+    loud = (rng.normal(0, 6000, RATE * 10)).astype("<i2").tobytes()
+    utterances = list(segment_utterances(pcm_to_chunks(loud)))
+    assert len(utterances) >= 2
+    assert max(u.duration_s for u in utterances) <= load_vad_settings().max_utterance_s + 0.05

