@@ -183,3 +183,10 @@ def test_phonetic_hears_homophones_that_characters_miss() -> None:
 def test_phonetic_uses_every_alternative() -> None:
     d = get_matcher("phonetic").decide(heard("hello there", "go right"), [EN])
     assert d.action == "go_right" and "alternative #2" in d.reason
+
+
+def test_unlikely_alternatives_are_ignored() -> None:
+    rec = Recognition(hypotheses=(Hypothesis("now turn turn turn", 0.6), Hypothesis("and", 0.05)), engine="x")
+    assert get_matcher("phonetic", min_confidence=0.3).decide(rec, [EN]).action is None
+    rec = Recognition(hypotheses=(Hypothesis("now turn turn turn", 0.6), Hypothesis("go up", 0.4)), engine="x")
+    assert get_matcher("phonetic", min_confidence=0.3).decide(rec, [EN]).action == "up"

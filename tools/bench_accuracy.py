@@ -19,6 +19,7 @@ import argparse
 import json
 import sys
 import time
+import zlib
 from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -119,7 +120,7 @@ def recognise_one(recognizer, item: Item) -> dict:
     audio_s = len(pcm) / 2 / 16_000
     return {
         "hypotheses": [[h.text, h.confidence, h.score] for h in rec.hypotheses],
-        "lang": rec.lang, "extra": dict(rec.extra), "audio_s": audio_s,
+        "engine": rec.engine, "lang": rec.lang, "extra": dict(rec.extra), "audio_s": audio_s,
         "latency_s": clock - n_chunks * CHUNK_S, "busy_s": busy,
     }
 
@@ -129,6 +130,8 @@ def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, 
         cache = load_cache(engine)
         todo = [it for it in items[::every] if it.key not in cache]
         todo = [it for it in todo if bench_engines.supports(engine, it.lang)]
+        # A fixed pseudo-random order: a run stopped early (--limit-s) still samples every cell evenly.
+        todo.sort(key=lambda it: (it.split != "real", zlib.crc32(it.key.encode())))
         print(f"{engine}: {len(cache)} cached, {len(todo)} to recognise", flush=True)
         if not todo:
             continue
@@ -151,9 +154,10 @@ def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, 
 
 # -- stage 2: decide and score ----------------------------------------------------------------------
 def recognition(engine: str, rec: dict) -> Recognition:
+    """A cached record back as a Recognition; ``engine`` is the real engine name (for its thresholds)."""
     return Recognition(
         hypotheses=tuple(Hypothesis(t, c, s) for t, c, s in rec["hypotheses"]),
-        engine=engine, lang=rec.get("lang"), audio_s=rec.get("audio_s", 0.0), extra=rec.get("extra", {}),
+        engine=rec.get("engine", engine), lang=rec.get("lang"), audio_s=rec.get("audio_s", 0.0), extra=rec.get("extra", {}),
     )
 
 

@@ -142,8 +142,21 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
     print(f"wrote {DOC}")
 
 
+def _sweep_scores(ranked, max_d: float, margin: float) -> tuple[Score, Score]:
+    """Decisions under one (max_distance, min_margin) from precomputed rankings: dev and real scores."""
+    dev, real = Score(), Score()
+    for it, r in ranked:
+        got = "none"
+        if r.best is not None and not r.reason and r.best.distance <= max_d + 1e-9:
+            gap = math.inf if r.rival is None else r.rival.distance - r.best.distance
+            if gap >= margin:
+                got = r.best.phrase.action
+        (real if it.split == "real" else dev).add(it.truth, got)
+    return dev, real
+
+
 def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
-    """Sweep max_distance x min_margin on the dev split + real voices; print the best settings."""
+    """Sweep max_distance x min_margin x min_confidence on the dev split + real voices; print the best."""
     dictionaries = {lang: load_language(lang) for lang in LANGS}
     items = [it for it in items if it.split in ("dev", "real")]
     for engine in engines:
@@ -153,32 +166,19 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
             continue
         for m in matchers:
             matcher = get_matcher(m)
-            ranked = []
-            for it in cached:
-                rec = recognition(engine, cache[it.key])
-                r = matcher.rank(rec, [dictionaries[it.lang]], {**matcher.thresholds(engine), "min_confidence": 0.0})
-                conf = rec.best.confidence if rec.best and rec.best.confidence is not None else 1.0
-                ranked.append((it, r, conf))
-            has_conf = any(c < 1.0 for _, _, c in ranked)
+            has_conf = any(h[1] is not None for it in cached for h in cache[it.key]["hypotheses"])
+            recs = [(it, recognition(engine, cache[it.key])) for it in cached]
             rows = []
-            for max_d, margin, min_conf in itertools.product(
-                np.arange(0.0, 0.71, 0.05), (0.0, 0.05, 0.1, 0.15, 0.2),
-                (0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7) if has_conf else (0.0,),
-            ):
-                dev, real = Score(), Score()
-                for it, r, conf in ranked:
-                    got = "none"
-                    if (r.best is not None and not r.reason and r.best.distance <= max_d + 1e-9
-                            and conf >= min_conf):
-                        gap = math.inf if r.rival is None else r.rival.distance - r.best.distance
-                        if gap >= margin:
-                            got = r.best.phrase.action
-                    (real if it.split == "real" else dev).add(it.truth, got)
-                ok = not dev.pct("false_accept") > 2.0 and real.false_accept <= 1
-                objective = (_z(dev.pct("right")) + _z(real.pct("right"))
-                             - 3 * (_z(dev.pct("wrong")) + _z(real.pct("wrong")))
-                             - 2 * (_z(dev.pct("false_accept")) + _z(real.pct("false_accept"))))
-                rows.append((ok, objective, max_d, margin, min_conf, dev, real))
+            for min_conf in (0.0, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7) if has_conf else (0.0,):
+                limits = {**matcher.thresholds(engine), "min_confidence": min_conf}
+                ranked = [(it, matcher.rank(rec, [dictionaries[it.lang]], limits)) for it, rec in recs]
+                for max_d, margin in itertools.product(np.arange(0.0, 0.71, 0.05), (0.0, 0.05, 0.1, 0.15, 0.2)):
+                    dev, real = _sweep_scores(ranked, max_d, margin)
+                    ok = not dev.pct("false_accept") > 2.0 and real.false_accept <= 1
+                    objective = (_z(dev.pct("right")) + _z(real.pct("right"))
+                                 - 3 * (_z(dev.pct("wrong")) + _z(real.pct("wrong")))
+                                 - 2 * (_z(dev.pct("false_accept")) + _z(real.pct("false_accept"))))
+                    rows.append((ok, objective, max_d, margin, min_conf, dev, real))
             rows.sort(key=lambda r: (not r[0], -r[1]))
             print(f"\n{engine} + {m}: (meets FA limits?) max_distance min_margin min_confidence | "
                   f"dev right/wrong/rej FA | real right/wrong/rej acted-on-non-command")

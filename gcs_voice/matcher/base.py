@@ -147,6 +147,11 @@ class Matcher:
         heard = [item for item in heard if item[2]]
         if not heard:
             return Ranking(None, None, "nothing heard")
+        # An alternative the engine itself gives little chance is not evidence for an action.
+        floor = limits["min_confidence"]
+        hyps = recognition.hypotheses
+        heard = [item for item in heard
+                 if item[0] == 0 or hyps[item[0]].confidence is None or hyps[item[0]].confidence >= floor]
         reason = self._evidence_reason(recognition)
         conf = recognition.best.confidence if recognition.best else None
         if not reason and conf is not None and conf < limits["min_confidence"]:
@@ -173,7 +178,11 @@ class Matcher:
             key=lambda c: (c.distance, c.dictionary.language != wanted_lang, c.rank, order[id(c)])
         )
         best = candidates[0]
-        rival = next((c for c in candidates if c.phrase.action != best.phrase.action), None)
+        # Ambiguity is judged within the winning text: a lower-ranked alternative of another class is
+        # the engine's doubt, already priced by alt_penalty and min_confidence.
+        rival = next(
+            (c for c in candidates if c.rank == best.rank and c.phrase.action != best.phrase.action), None
+        )
         return Ranking(best, rival, reason)
 
     # -- reasons ---------------------------------------------------------------------------------
