@@ -13,6 +13,7 @@ NaN never leaves the mapper.
 from __future__ import annotations
 
 import math
+import threading
 from collections import deque
 from dataclasses import dataclass
 
@@ -52,6 +53,8 @@ class ActionMapper:
         self.limit_reason: str = ""
         #: automatic action changes (floor reached, link lost), newest last, for the UI
         self.events: deque[str] = deque(maxlen=32)
+        #: apply() runs in the caller's thread, setpoint() in the link's stream thread
+        self._lock = threading.RLock()
 
     def _init_yaw(self, state: VehicleState) -> float:
         if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
@@ -60,11 +63,16 @@ class ActionMapper:
 
     def reset_heading(self, state: VehicleState) -> None:
         """Forget the heading target; the next setpoint takes the vehicle's current heading (after take-off)."""
-        self.yaw_target_deg = None
-        self._init_yaw(state)
+        with self._lock:
+            self.yaw_target_deg = None
+            self._init_yaw(state)
 
     def apply(self, action: str, state: VehicleState) -> MappedAction:
         """Make ``action`` the current one (motions) or hand back the flight operation to run."""
+        with self._lock:
+            return self._apply(action, state)
+
+    def _apply(self, action: str, state: VehicleState) -> MappedAction:
         if action not in ACTIONS:
             raise UnknownActionError(f"unknown action {action!r}; expected one of {', '.join(ACTIONS)}")
         yaw = self._init_yaw(state)
@@ -85,6 +93,10 @@ class ActionMapper:
 
     def setpoint(self, state: VehicleState) -> Setpoint:
         """The setpoint for now: the action's velocity, limited by floor, ceiling and fence."""
+        with self._lock:
+            return self._setpoint(state)
+
+    def _setpoint(self, state: VehicleState) -> Setpoint:
         yaw = self._init_yaw(state)
         reasons: list[str] = []
         if state.last_heard_s is not None and not state.link_ok:

@@ -4,8 +4,9 @@ Targets (``ControlTarget``) are NED with absolute yaw. Bad targets never reach J
 * a vector (velocity or position) with any NaN/inf component, the wrong length or a non-number is DROPPED;
 * velocities are CLAMPED to the limits (horizontal norm, vertical), positions to ``position_offset_m`` of home;
 * a non-finite yaw or yaw rate is DROPPED; yaw is wrapped to [-pi, pi), yaw rate clamped;
-* a target with no valid vector holds the position where the vehicle was when the target was set, and one
-  with no valid yaw/yaw rate holds the heading it had then. So garbage brakes the vehicle, never moves it.
+* a target with no valid vector holds the position where the vehicle was when the first such target came
+  (a stream of them keeps that point), and one with no valid yaw/yaw rate likewise holds the heading it had
+  then. So garbage brakes the vehicle (and returns it to where the garbage began), never sends it anywhere.
 Precedence: position over velocity, yaw over yaw rate.
 """
 
@@ -57,10 +58,13 @@ class ControlGains:
     velocity_kp_vertical_per_s: float
     velocity_ki_vertical_per_s2: float
     velocity_integral_limit_m_s2: float
+    velocity_accel_limit_horizontal_m_s2: float
+    velocity_accel_limit_vertical_m_s2: float
+    velocity_feedforward_horizontal: float
+    velocity_feedforward_vertical: float
     attitude_kp_roll_pitch_per_s: float
     attitude_kp_yaw_per_s: float
     rate_kp_roll_pitch_per_s: float
-    rate_kd_roll_pitch: float
     rate_kp_yaw_per_s: float
     rate_ki_yaw_per_s2: float
     mixer_arm_length_m: float
@@ -151,14 +155,18 @@ class CascadedController:
         self.reset_integrators()
 
     def reset_integrators(self) -> None:
+        """Forget integrators and the slewed velocity reference (taken again from the vehicle)."""
         self._i_vel = [0.0, 0.0, 0.0]
         self._i_yaw_rate = 0.0
+        self._v_ref: list[float] | None = None
 
     def set_target(self, target: ControlTarget, sample: FdmSample) -> None:
         """Adopt a target (sanitised); hold-position and hold-heading references are taken from ``sample``."""
         clean = sanitize_target(target, self.gains)
-        if clean.pos_ned_m is None and clean.vel_ned_m_s is None:
-            self._hold_pos = (sample.north_m, sample.east_m, sample.down_m)
+        if clean.pos_ned_m is None and clean.vel_ned_m_s is None:  # hold: where it is now, or where it was
+            holding = self._target.pos_ned_m is None and self._target.vel_ned_m_s is None
+            if not holding:
+                self._hold_pos = (sample.north_m, sample.east_m, sample.down_m)
         if clean.yaw_rad is None and clean.yaw_rate_rad_s is None:
             keeping = self._target.yaw_rad is None and self._target.yaw_rate_rad_s is None
             if not keeping:
@@ -207,12 +215,15 @@ class CascadedController:
             self._hold_pos = (s.north_m, s.east_m, s.down_m)
             return [g.limits_ground_idle_throttle] * 4
 
-        # velocity -> acceleration (NED), PI with clamped integrators
-        vt = self._velocity_target(s)
-        errors = (vt[0] - s.vn_m_s, vt[1] - s.ve_m_s, vt[2] - s.vd_m_s)
+        # velocity -> acceleration (NED): the target is slewed at bounded acceleration (a step becomes a
+        # ramp the vehicle can follow, as PX4 does), then PI on the slewed reference plus its acceleration
+        ff = self._slew_reference(self._velocity_target(s), s, dt_s)
+        ref = self._v_ref
+        errors = (ref[0] - s.vn_m_s, ref[1] - s.ve_m_s, ref[2] - s.vd_m_s)
         kp = (g.velocity_kp_horizontal_per_s, g.velocity_kp_horizontal_per_s, g.velocity_kp_vertical_per_s)
         ki = (g.velocity_ki_horizontal_per_s2, g.velocity_ki_horizontal_per_s2, g.velocity_ki_vertical_per_s2)
-        acc = [kp[axis] * errors[axis] + self._i_vel[axis] for axis in range(3)]
+        ffw = (g.velocity_feedforward_horizontal, g.velocity_feedforward_horizontal, g.velocity_feedforward_vertical)
+        acc = [ffw[axis] * ff[axis] + kp[axis] * errors[axis] + self._i_vel[axis] for axis in range(3)]
 
         # acceleration -> roll/pitch targets and collective thrust
         lift_m_s2 = max(GRAVITY_M_S2 - acc[2], MIN_LIFT_FRACTION * GRAVITY_M_S2)
@@ -251,6 +262,23 @@ class CascadedController:
         self._i_yaw_rate = _clamp(self._i_yaw_rate + g.rate_ki_yaw_per_s2 * r_error * dt_s, 5.0)
         torque_n = izz * (g.rate_kp_yaw_per_s * r_error + self._i_yaw_rate)
         return self._mix(thrust_n, torque_l, torque_m, torque_n)
+
+    def _slew_reference(self, vt: tuple[float, float, float], s: FdmSample, dt_s: float) -> tuple[float, ...]:
+        """Move the velocity reference toward ``vt`` at bounded acceleration; return that acceleration."""
+        g = self.gains
+        ref = self._v_ref
+        if ref is None:  # (re)starting: begin from what the vehicle is doing
+            ref = self._v_ref = [s.vn_m_s, s.ve_m_s, s.vd_m_s]
+        dn, de, dd = vt[0] - ref[0], vt[1] - ref[1], vt[2] - ref[2]
+        step_h = g.velocity_accel_limit_horizontal_m_s2 * dt_s
+        norm_h = math.hypot(dn, de)
+        if norm_h > step_h:
+            dn, de = dn * step_h / norm_h, de * step_h / norm_h
+        dd = _clamp(dd, g.velocity_accel_limit_vertical_m_s2 * dt_s)
+        ref[0] += dn
+        ref[1] += de
+        ref[2] += dd
+        return dn / dt_s, de / dt_s, dd / dt_s
 
     def _yaw_rate_target(self, s: FdmSample) -> float:
         g = self.gains

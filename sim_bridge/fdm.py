@@ -99,9 +99,6 @@ def _flush_c_stdio() -> None:
 
 def _quiet_logger(jsbsim: ModuleType) -> contextlib.AbstractContextManager[None]:
     """JSBSim >= 1.3 prints through a per-thread Python logger: swap in one that keeps messages at debug."""
-    if not hasattr(jsbsim, "set_logger"):
-        return contextlib.nullcontext()
-
     class _ToPythonLogging(jsbsim.FGLogger):
         def message(self, message: str) -> None:
             if message.strip():
@@ -142,10 +139,9 @@ def _quiet_fds() -> Iterator[None]:
             os.close(fd)
 
 
-@contextlib.contextmanager
-def _quiet_both(jsbsim: ModuleType) -> Iterator[None]:
-    with _quiet_logger(jsbsim), _quiet_fds():
-        yield
+def _quiet(jsbsim: ModuleType) -> contextlib.AbstractContextManager[None]:
+    """JSBSim >= 1.3: swap its logger (thread-local, harmless); older: redirect the process's fds briefly."""
+    return _quiet_logger(jsbsim) if hasattr(jsbsim, "set_logger") else _quiet_fds()
 
 
 class QuadFdm:
@@ -159,7 +155,7 @@ class QuadFdm:
         self.home_lon_deg = home_lon_deg
         self.home_alt_m = home_alt_m
         jsbsim_root = Path(jsbsim.__file__).resolve().parent
-        self._quiet = lambda: _quiet_both(jsbsim)
+        self._quiet = lambda: _quiet(jsbsim)
         with self._quiet():
             fdm = jsbsim.FGFDMExec(None)
             fdm.set_debug_level(0)

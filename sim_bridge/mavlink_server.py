@@ -36,7 +36,12 @@ HEADER_LEN_V1 = 6
 
 @dataclass
 class ServerStats:
-    """Why input was ignored, summed over links; reported as 'SIM rx: ...' STATUSTEXT and on exit."""
+    """Why input was ignored, summed over links; reported as a 'SIM rx ...' STATUSTEXT and on exit.
+
+    The text (at most every 10 simulated s, only when a count changed) reads
+    ``SIM rx bad,unk,fgn,drop,clamp B,U,F,D,C``: bad frames (CRC, truncated, garbage), unknown message
+    ids, messages for another system/component, setpoints dropped (frame, mask, NaN), setpoints clamped.
+    """
 
     bad_frames: int = 0
     unknown_messages: int = 0
@@ -46,8 +51,8 @@ class ServerStats:
     sent: int = 0
 
     def summary(self, rejected_setpoints: int, clamped_setpoints: int) -> str:
-        return (f"SIM rx: bad {self.bad_frames} unk {self.unknown_messages} foreign {self.foreign} "
-                f"sp-drop {rejected_setpoints} clamp {clamped_setpoints}")
+        counts = (self.bad_frames, self.unknown_messages, self.foreign, rejected_setpoints, clamped_setpoints)
+        return "SIM rx bad,unk,fgn,drop,clamp " + ",".join(str(n) for n in counts)
 
 
 class SimServer:
@@ -293,7 +298,7 @@ class SimServer:
         if self.vehicle.time_s >= self._next_summary_s:
             self._next_summary_s += STATS_PERIOD_S
             summary = self.summary_text()
-            if summary != self._last_summary and any(ch.isdigit() and ch != "0" for ch in summary):
+            if summary != self._last_summary and any(n != "0" for n in summary.rsplit(" ", 1)[1].split(",")):
                 self._last_summary = summary
                 self.text(mavlink.MAV_SEVERITY_INFO, summary)
 

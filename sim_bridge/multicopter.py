@@ -21,6 +21,7 @@ __all__ = ["Multicopter", "RigidBodyState", "ControlTarget", "Contact", "DEFAULT
 DEFAULT_HOME = (47.397742, 8.545594, 488.0)   # lat_deg, lon_deg, alt_m: PX4 SITL's default home
 DEFAULT_PHYSICS_HZ = 300.0                     # 200-400 Hz fly alike (docs/bench/sim.md); 300 keeps >= 60x
 MIN_PHYSICS_HZ, MAX_PHYSICS_HZ = 100.0, 2000.0
+MAX_DISTURBANCE_N = 50.0
 ON_GROUND_MIN_GEAR_CONTACTS = 2                # of the three gear points
 ON_GROUND_MAX_CLIMB_M_S = 0.3                  # and not moving up faster than this
 
@@ -43,11 +44,12 @@ class Multicopter:
         if not (isinstance(physics_hz, (int, float)) and MIN_PHYSICS_HZ <= physics_hz <= MAX_PHYSICS_HZ):
             raise ValueError(f"physics_hz must be {MIN_PHYSICS_HZ:g}..{MAX_PHYSICS_HZ:g}, not {physics_hz!r}")
         self.physics_hz = float(physics_hz)
+        gains = load_gains(gains_path)              # data files first: a typo fails before JSBSim loads
+        self._contacts = ContactModel(room, load_contact_params()) if room else None
         self._fdm = QuadFdm(self.physics_hz, self.home_lat_deg, self.home_lon_deg, self.home_alt_m)
         self.hover_throttle = self._fdm.find_hover_throttle()
-        self._controller = CascadedController(load_gains(gains_path), self._fdm.mass_kg,
-                                              self._fdm.inertia_kg_m2, self.hover_throttle)
-        self._contacts = ContactModel(room, load_contact_params()) if room else None
+        self._controller = CascadedController(gains, self._fdm.mass_kg, self._fdm.inertia_kg_m2,
+                                              self.hover_throttle)
         self.reset()
 
     # ---- lifecycle -------------------------------------------------------------------------
@@ -60,6 +62,8 @@ class Multicopter:
         self._events: list[Contact] = []
         self._touching: dict[str, float] = {}   # obstacle -> last time touched
         self._pushing = False                   # a contact force is set in JSBSim
+        self._disturbance_n: tuple[float, ...] = (0.0, 0.0, 0.0)
+        self._disturbance_changed = True
         self._sample = self._fdm.sample()
         self._controller.hold_here(self._sample)
 
@@ -86,6 +90,25 @@ class Multicopter:
         """The target being flown, after sanitising."""
         return self._controller.target
 
+    def set_disturbance_force_ned_n(self, force_ned_n: tuple[float, float, float]) -> None:
+        """A steady external push at the CG (N, NED), e.g. a gust, until changed; non-finite parts count as 0.
+
+        For benchmarks and tests of disturbance rejection; the vehicle layer has no need of it.
+        """
+        clean = []
+        try:
+            values = tuple(force_ned_n)[:3]
+        except TypeError:
+            values = ()
+        for value in values:
+            try:
+                number = float(value)
+            except (TypeError, ValueError):
+                number = 0.0
+            clean.append(max(-MAX_DISTURBANCE_N, min(MAX_DISTURBANCE_N, number)) if math.isfinite(number) else 0.0)
+        self._disturbance_n = tuple(clean + [0.0] * (3 - len(clean)))
+        self._disturbance_changed = True
+
     def pop_events(self) -> list[Contact]:
         """Contacts since the last call, oldest first."""
         events, self._events = self._events, []
@@ -110,6 +133,9 @@ class Multicopter:
             self._fdm.set_throttles(self._controller.update(s, dt_s, on_ground))
         if self._contacts is not None:
             self._apply_contacts(s)
+        elif self._disturbance_changed:
+            self._fdm.set_contact_force_ned_n(*self._disturbance_n)
+        self._disturbance_changed = False
         self._fdm.run_step()
         self._steps += 1
         self._sample = self._fdm.sample()
@@ -117,8 +143,9 @@ class Multicopter:
     def _apply_contacts(self, s: FdmSample) -> None:
         center = (s.north_m, s.east_m, s.down_m - GEAR_HEIGHT_M)
         force, touching = self._contacts.force_ned_n(center, (s.vn_m_s, s.ve_m_s, s.vd_m_s))
-        if touching or self._pushing:
-            self._fdm.set_contact_force_ned_n(*force)
+        if touching or self._pushing or self._disturbance_changed:
+            extra = self._disturbance_n
+            self._fdm.set_contact_force_ned_n(force[0] + extra[0], force[1] + extra[1], force[2] + extra[2])
             self._pushing = bool(touching)
         now = self.t_s
         for name in touching:

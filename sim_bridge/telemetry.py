@@ -133,7 +133,7 @@ def _battery_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _ekf_status_report(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    flags = 831 if ap.armable() else 167   # ArduCopter's values before and after "EKF3 is using GPS"
+    flags = 831 if ap.booted else 167   # ArduCopter's values before and after "EKF3 is using GPS"
     return mav.ekf_status_report_encode(flags, 0.01, 0.01, 0.01, 0.01, 0.0)
 
 

@@ -93,6 +93,7 @@ class UdpOutLink(Link):
             raise TransportError(f"udp:{host}:{port}: unknown host") from exc
         self.sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         self.sock.setblocking(False)
+        self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)   # absorb bursts (kernel caps it)
         self.sock.bind(("127.0.0.1" if self.dest[0].startswith("127.") else "0.0.0.0", 0))
 
     def fileno(self) -> int:

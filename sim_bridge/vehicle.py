@@ -67,6 +67,7 @@ class VehicleLimits:
     yaw_slew_rad_s: float | None = math.radians(60)
     auto_yaw_min_speed_m_s: float = 0.5
     return_alt_m: float = 15.0
+    return_cone_deg: float | None = None    # PX4: return no higher than distance / tan(cone) near home
     return_speed_m_s: float = 5.0
 
 
@@ -148,6 +149,7 @@ class Vehicle:
         self._touchdown_s: float | None = None
         self._airborne = not self.state.on_ground
         self._rtl_phase = "climb"
+        self.rtl_alt_m = 0.0
         self._last_descent_m_s = 0.0
         self.touchdown_speed_m_s = 0.0
 
@@ -211,10 +213,18 @@ class Vehicle:
         self._touchdown_s = None
         self.behaviour = Behaviour.LAND
 
-    def return_to_launch(self) -> None:
+    def return_to_launch(self) -> float:
+        """Climb (never descend) to the return altitude, fly home, land; returns that altitude (m above home)."""
+        pos = self.state.pos_ned_m
+        return_alt = self.limits.return_alt_m
+        if self.limits.return_cone_deg:
+            distance = math.hypot(float(pos[0]), float(pos[1]))
+            return_alt = min(return_alt, distance / math.tan(math.radians(self.limits.return_cone_deg)))
+        self.rtl_alt_m = self._cap_altitude(max(-float(pos[2]), return_alt))
         self._rtl_phase = "climb"
         self._touchdown_s = None
         self.behaviour = Behaviour.RTL
+        return self.rtl_alt_m
 
     def follow(self, setpoint: Setpoint, from_ground: bool = False) -> None:
         """Take a new external setpoint (already in NED, absolute yaw).
@@ -351,7 +361,7 @@ class Vehicle:
     def _rtl_target(self, pos: tuple[float, float, float], events: list[VehicleEvent]) -> Any:
         from sim_bridge.control import ControlTarget
 
-        return_alt = self._cap_altitude(max(-pos[2], self.limits.return_alt_m))
+        return_alt = self.rtl_alt_m
         if self._rtl_phase == "climb":
             if -pos[2] >= return_alt - 0.1:
                 self._rtl_phase = "return"

@@ -141,6 +141,9 @@ def load_room(path_or_name: str | Path) -> Room:
         raise RoomError(f"{source}: start.pos_m must be [x, y] and start.yaw_deg a number")
     if not (bmin[0] <= pos[0] <= bmax[0] and bmin[1] <= pos[1] <= bmax[1]):
         raise RoomError(f"{source}: start.pos_m {pos} lies outside the bounds")
+    for block in blocks:
+        if block.min_m[0] <= pos[0] <= block.max_m[0] and block.min_m[1] <= pos[1] <= block.max_m[1]:
+            raise RoomError(f"{source}: start.pos_m {pos} lies under block '{block.name}': start on a free spot")
     home = data.get("home", {})
     home_values = [home.get(k) for k in ("lat_deg", "lon_deg", "alt_m")] if isinstance(home, dict) else [0]
     if home and not all(isinstance(v, (int, float)) and math.isfinite(v) for v in home_values):

@@ -32,18 +32,22 @@ def free_udp_port() -> int:
 
 
 class ScriptedVehicle:
-    def __init__(self, autopilot: str = "ardupilot", arm_refusals: int = 0, heading_deg: float = 0.0) -> None:
+    def __init__(self, autopilot: str = "ardupilot", arm_refusals: int = 0, heading_deg: float = 0.0,
+                 mav_type: int = mavlink.MAV_TYPE_QUADROTOR, mode_after_arm: int | None = None,
+                 custom_mode: int | None = None) -> None:
         self.port = free_udp_port()
         self.px4 = autopilot == "px4"
         self.conn = mavutil.mavlink_connection(f"udpin:127.0.0.1:{self.port}", source_system=1, source_component=1,
                                                dialect="ardupilotmega")
-        self.custom_mode = PX4_HOLD if self.px4 else 0
+        self.custom_mode = custom_mode if custom_mode is not None else (PX4_HOLD if self.px4 else 0)
         self.armed = False
         self.arm_refusals = arm_refusals
         self.height_m = 0.0
         self.target_height_m = 0.0
         self.heading_deg = heading_deg
         self.sending = True
+        self.mav_type = mav_type
+        self.mode_after_arm = mode_after_arm  # e.g. ArduCopter's RC switch putting STABILIZE back
         self.received: list[tuple[float, Any]] = []
         self.lock = threading.Lock()
         self._running = True
@@ -95,7 +99,7 @@ class ScriptedVehicle:
     def _heartbeat(self) -> None:
         autopilot = mavlink.MAV_AUTOPILOT_PX4 if self.px4 else mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
         base = mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | (mavlink.MAV_MODE_FLAG_SAFETY_ARMED if self.armed else 0)
-        self._send(self.conn.mav.heartbeat_encode(mavlink.MAV_TYPE_QUADROTOR, autopilot, base, self.custom_mode,
+        self._send(self.conn.mav.heartbeat_encode(self.mav_type, autopilot, base, self.custom_mode,
                                                   mavlink.MAV_STATE_STANDBY))
 
     def _telemetry(self) -> None:
@@ -135,9 +139,14 @@ class ScriptedVehicle:
                 self.custom_mode = int(msg.param2)
             self._heartbeat()
         elif cmd == mavlink.MAV_CMD_COMPONENT_ARM_DISARM:
-            if msg.param1 == 0:
+            if msg.param1 == 0 and self.height_m > 0.2:  # autopilots refuse to disarm in flight (unless forced)
+                self._ack(cmd, mavlink.MAV_RESULT_FAILED)
+            elif msg.param1 == 0:
                 self.armed = False
                 self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
+            elif self.px4 and self.custom_mode == PX4_OFFBOARD and not self._setpoints_recent():
+                self._ack(cmd, mavlink.MAV_RESULT_TEMPORARILY_REJECTED)  # EVENT "No offboard signal"
+                self._text(2, "Arming denied: Resolve system health failures first\t")
             elif self.arm_refusals > 0:
                 self.arm_refusals -= 1
                 self._text(2, "Arm: Need Position Estimate")
@@ -146,6 +155,9 @@ class ScriptedVehicle:
                 self.armed = True
                 self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED)
                 self._text(6, "Arming motors")
+                if self.mode_after_arm is not None:
+                    self.custom_mode, self.mode_after_arm = self.mode_after_arm, None
+                    self._heartbeat()
         elif cmd == mavlink.MAV_CMD_NAV_TAKEOFF:
             ok = self.armed and math.isfinite(msg.param7)
             self._ack(cmd, mavlink.MAV_RESULT_ACCEPTED if ok else mavlink.MAV_RESULT_FAILED)

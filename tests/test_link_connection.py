@@ -60,3 +60,28 @@ def test_profiles_use_pymavlink_mode_tables() -> None:
     assert PX4.mode_name(0, 67371008) == "MISSION" and ARDUPILOT.mode_name(0, 4) == "GUIDED"
     with pytest.raises(KeyError):
         PX4.mode_params("GUIDED")
+
+
+def test_flags_give_connection_and_settings(tmp_path) -> None:
+    import argparse
+
+    from gcs_voice.link.options import add_link_arguments, connection_from_args, settings_from_args
+
+    parser = argparse.ArgumentParser()
+    add_link_arguments(parser)
+    assert connection_from_args(parser.parse_args([])) == "udpin:0.0.0.0:14550"
+    assert connection_from_args(parser.parse_args(["--udp", "14551"])) == "udpin:0.0.0.0:14551"
+    assert connection_from_args(parser.parse_args(["--connect", "tcp:127.0.0.1:5760"])) == "tcp:127.0.0.1:5760"
+    with pytest.raises(LinkError, match="MAVSDK"):
+        connection_from_args(parser.parse_args(["--connect", "udpin://0.0.0.0:14540"]))
+    config = tmp_path / "fly.toml"
+    config.write_text("[safety]\nceiling_m = 3.0\nfloor_m = 0.8\n")
+    settings = settings_from_args(parser.parse_args(["--config", str(config), "--floor", "1.0", "--speed", "0.7"]))
+    assert (settings.ceiling_m, settings.floor_m, settings.horizontal_speed_m_s) == (3.0, 1.0, 0.7)
+
+
+def test_unwritable_tlog_is_one_line() -> None:
+    from gcs_voice.link import VehicleLink
+
+    with pytest.raises(LinkError, match="cannot write the flight log"):
+        VehicleLink("udpin:127.0.0.1:0", tlog_path="/proc/no/such/dir/flight.tlog")

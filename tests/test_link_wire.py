@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
+from gcs_voice.errors import LinkError
 from gcs_voice.link import ACCEPTED, REFUSED, Setpoint, VehicleLink
 from gcs_voice.link.setpoints import TYPE_MASK_VELOCITY_YAW
 from gcs_voice.settings import load_settings
@@ -18,8 +19,9 @@ FAST = load_settings(arm_retry_s=0.3, command_timeout_s=0.5, mode_confirm_s=1.5,
                      takeoff_timeout_s=5.0)
 
 
-def _link(vehicle: ScriptedVehicle, tmp_path: Path, **overrides) -> VehicleLink:
-    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog")
+def _link(vehicle: ScriptedVehicle, tmp_path: Path, events: list | None = None, **overrides) -> VehicleLink:
+    link = VehicleLink(vehicle.connection, FAST.with_overrides(**overrides), tlog_path=tmp_path / "flight.tlog",
+                       on_event=(events.append if events is not None else None))
     link.open()
     link.wait_vehicle(timeout_s=5)
     return link
@@ -66,8 +68,9 @@ def test_arducopter_arm_retries_until_accepted_and_reports_reasons(tmp_path: Pat
 
 
 def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
+    events: list[str] = []
     with ScriptedVehicle("ardupilot") as vehicle:
-        link = _link(vehicle, tmp_path)
+        link = _link(vehicle, tmp_path, events)
         try:
             result = link.takeoff(2.0)
             assert result.ok, result
@@ -76,10 +79,45 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
             assert takeoff.param7 == pytest.approx(2.0)  # metres above home on ArduCopter
             time.sleep(0.5)
             assert link.streaming and vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
+            refused = link.disarm()
+            assert refused.status == REFUSED and "FAILED" in refused.reason
+            assert link.streaming  # a refused disarm must not stop the setpoints mid-air
             assert link.land().ok
             assert not link.streaming
+            assert link.wait_for(lambda s: s.armed is False, 3.0) is not None  # landed and disarmed by itself
+            time.sleep(0.1)
         finally:
             link.close()
+        said = [e for e in events if e.startswith("vehicle now")]
+        assert said == ["vehicle now GUIDED, disarmed", "vehicle now GUIDED, armed", "vehicle now LAND, armed",
+                        "vehicle now LAND, disarmed"]
+        assert "vehicle: Arming motors" in events and events[0] == "link up: ArduPilot system 1"
+
+
+def test_arducopter_mode_reset_after_arming_is_caught(tmp_path: Path) -> None:
+    """ArduCopter may drop GUIDED (end of init, RC mode switch): take-off sets it again before NAV_TAKEOFF."""
+    with ScriptedVehicle("ardupilot", mode_after_arm=0) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            result = link.takeoff(1.0)
+            assert result.ok, result
+        finally:
+            link.close()
+        commands = [(m.command, m.param2) for _, m in vehicle.messages("COMMAND_LONG") if m.command in (176, 400, 22)]
+        assert commands == [(176, 4.0), (400, 0.0), (176, 4.0), (22, 0.0)]
+
+
+def test_refusals_without_a_usable_vehicle(tmp_path: Path) -> None:
+    with ScriptedVehicle("ardupilot", mav_type=mavutil.mavlink.MAV_TYPE_FIXED_WING) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            result = link.takeoff(1.0)
+            assert result.status == REFUSED and "not a multicopter" in result.reason
+        finally:
+            link.close()
+        assert not [m for _, m in vehicle.messages("COMMAND_LONG")]
+    with pytest.raises(LinkError, match="cannot open"):
+        VehicleLink("udpin:256.0.0.1:14550").open()  # not an address: one line, no traceback
 
 
 def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
@@ -108,6 +146,21 @@ def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
             assert sp.type_mask == TYPE_MASK_VELOCITY_YAW and math.isfinite(sp.yaw)
 
 
+def test_px4_arms_in_hold_when_left_in_offboard(tmp_path: Path) -> None:
+    """After a failsafe landing PX4 sits in OFFBOARD, disarmed, where arming is refused: arm() goes to Hold."""
+    with ScriptedVehicle("px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        link = _link(vehicle, tmp_path)
+        try:
+            assert link.state.mode == "OFFBOARD"
+            result = link.arm(timeout_s=2.0)
+            assert result.ok, result
+            assert link.state.mode == "LOITER" and link.state.armed
+        finally:
+            link.close()
+        modes = [(m.param2, m.param3) for _, m in vehicle.messages("COMMAND_LONG") if m.command == 176]
+        assert modes == [(4.0, 3.0)]  # AUTO.LOITER (Hold)
+
+
 def test_px4_takeoff_uses_amsl_then_offboard(tmp_path: Path) -> None:
     with ScriptedVehicle("px4") as vehicle:
         link = _link(vehicle, tmp_path)
@@ -129,13 +182,16 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
     with ScriptedVehicle("ardupilot", heading_deg=30.0) as vehicle:
         link = _link(vehicle, tmp_path)
         try:
-            link.start_stream(lambda state: Setpoint(0.5, 0.0, 0.0, 30.0))
+            assert link.request_telemetry().ok
+            seen_lost = []
+            link.start_stream(lambda state: seen_lost.append(not state.link_ok) or Setpoint(0.5, 0.0, 0.0, 30.0))
             time.sleep(0.5)
             assert link.state.link_ok
             vehicle.sending = False
             silent_from = time.monotonic()
             assert link.wait_for(lambda s: not s.link_ok, 3.0) is not None
             lost_after = time.monotonic() - silent_from
+            assert link.send_setpoint(Setpoint(0.5, 0.0, 0.0, 30.0)) is False  # direct sends refused too
             assert 1.8 <= lost_after <= 2.6
             lost_at = time.monotonic()
             time.sleep(1.0)
@@ -144,6 +200,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
             time.sleep(0.5)
         finally:
             link.close()
+        assert any(seen_lost), "the setpoint source was never told about the loss"
         setpoints = vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
         assert not [t for t, _ in setpoints if lost_at + 0.15 < t < lost_at + 1.0]
         after = [m for t, m in setpoints if t > lost_at + 1.0]
@@ -152,6 +209,8 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         assert (first.vx, first.vy, first.vz) == (0.0, 0.0, 0.0)
         assert first.yaw == pytest.approx(math.radians(30.0), abs=1e-6)
         assert after[-1].vx == pytest.approx(0.5 * math.cos(math.radians(30)), abs=1e-6)
+        intervals = [t for t, m in vehicle.messages("COMMAND_LONG") if m.command == 511]
+        assert len(intervals) == 8 and intervals[-1] > lost_at  # asked again after the link came back
 
 
 def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> None:
@@ -173,3 +232,17 @@ def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> No
             assert link.set_mode("GUIDED").status == ACCEPTED
         finally:
             link.close()
+
+
+def test_link_check_command_prints_state_and_commands_nothing(capsys) -> None:
+    from gcs_voice.link.__main__ import main
+
+    with ScriptedVehicle("px4") as vehicle:
+        assert main(["--connect", vehicle.connection, "--seconds", "1.5", "--wait", "5"]) == 0
+        commanded = {m.command for _, m in vehicle.messages("COMMAND_LONG")}
+        assert commanded <= {511, 512}  # telemetry requests only
+        assert not vehicle.messages("SET_POSITION_TARGET_LOCAL_NED")
+    out = capsys.readouterr().out
+    assert "link ok | PX4 sys 1 | mode LOITER | disarmed | ON_GROUND | height 0.00 m | heading 0.0 deg" in out
+    assert main(["--connect", "udpin://0.0.0.0:14540"]) == 2
+    assert "MAVSDK" in capsys.readouterr().err

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from sim_bridge.control import ControlTarget, load_gains, sanitize_target
+from sim_bridge.control import DEFAULT_GAINS_PATH, ControlTarget, load_gains, sanitize_target
+from sim_bridge.frames import geodetic_to_ned_m, ned_to_geodetic
 from sim_bridge.multicopter import Multicopter
 from sim_bridge.world import load_room
 
@@ -35,10 +36,26 @@ def hovering() -> Multicopter:
     return vehicle
 
 
-def test_loading_prints_nothing(capfd: pytest.CaptureFixture[str]) -> None:
-    Multicopter()
+def test_loading_and_flying_print_nothing(capfd: pytest.CaptureFixture[str]) -> None:
+    vehicle = Multicopter(load_room("living_room"))
+    vehicle.set_armed(True)
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, -2.5)))   # up into the ceiling
+    fly(vehicle, 3.0)
+    vehicle.reset()
     out, err = capfd.readouterr()
     assert out == "" and err == ""
+
+
+def test_bad_gains_file_is_one_line_naming_file_and_key(tmp_path) -> None:
+    good = DEFAULT_GAINS_PATH.read_text(encoding="utf-8")
+    for broken, says in ((good.replace("tilt_deg = ", "tilt_degrees = "), "limits.tilt_deg"),
+                         (good.replace("kp_yaw_per_s = 3.0", 'kp_yaw_per_s = "fast"'), "attitude.kp_yaw_per_s"),
+                         (good + "\n[", "cannot read")):
+        path = tmp_path / "gains.toml"
+        path.write_text(broken, encoding="utf-8")
+        with pytest.raises(ValueError) as caught:
+            Multicopter(gains_path=path)
+        assert str(path) in str(caught.value) and says in str(caught.value)
 
 
 def test_hover_holds_altitude_within_5_cm(hovering: Multicopter) -> None:
@@ -165,3 +182,52 @@ def test_reset_returns_to_start_disarmed(hovering: Multicopter) -> None:
     state = hovering.state
     assert state.t_s == 0.0 and not state.armed and state.on_ground
     assert np.abs(state.pos_ned_m).max() < 0.01
+
+
+def test_geodetic_position_agrees_with_ned(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(pos_ned_m=(3.0, -2.0, -2.5)))
+    fly(hovering, 8.0)
+    state = hovering.state
+    north_m, east_m = geodetic_to_ned_m(state.lat_deg, state.lon_deg, hovering.home_lat_deg, hovering.home_lon_deg)
+    assert np.allclose(state.pos_ned_m, (3.0, -2.0, -2.5), atol=0.05)
+    assert (north_m, east_m) == pytest.approx((state.pos_ned_m[0], state.pos_ned_m[1]), abs=1e-3)
+    assert state.alt_amsl_m == pytest.approx(hovering.home_alt_m + 2.5, abs=0.05)
+    assert ned_to_geodetic(north_m, east_m, hovering.home_lat_deg, hovering.home_lon_deg) == pytest.approx(
+        (state.lat_deg, state.lon_deg), abs=1e-9)
+
+
+def test_yaw_turns_the_short_way_across_north_south(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=math.radians(170)))
+    fly(hovering, 4.0)
+    hovering.set_target(ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=math.radians(-170)))
+    states = fly(hovering, 3.0)
+    yaws_deg = [math.degrees(s.yaw_rad) for s in states]
+    assert all(abs(y) > 150.0 for y in yaws_deg)        # never swung back through north
+    assert abs(yaws_deg[-1] + 170.0) < 3.0
+
+
+def test_position_hold_rejects_a_steady_push(hovering: Multicopter) -> None:
+    hold = np.array((0.0, 0.0, CRUISE_DOWN_M))
+    hovering.set_target(ControlTarget(pos_ned_m=tuple(hold)))
+    hovering.set_disturbance_force_ned_n((0.0, 1.0, 1.0))   # east and down, about 7 % of the weight each
+    pushed = fly(hovering, 6.0)
+    drift_m = max(np.linalg.norm(s.pos_ned_m - hold) for s in pushed)
+    assert 0.05 < drift_m < 0.3                               # it felt the push, and held on
+    assert abs(pushed[-1].pos_ned_m[2] - hold[2]) < 0.01       # height: the integrator took the push over
+    assert abs(pushed[-1].pos_ned_m[1]) < 0.7 * drift_m        # sideways: slowly (see docs/bench/sim.md)
+    hovering.set_disturbance_force_ned_n((math.nan, "x", math.inf))  # type: ignore[arg-type]  # = no push
+    fly(hovering, 10.0)
+    assert np.linalg.norm(hovering.state.pos_ned_m - hold) < 0.05
+
+
+def test_repeated_garbage_keeps_the_first_hold_point(hovering: Multicopter) -> None:
+    hovering.set_target(ControlTarget(vel_ned_m_s=(1.0, 0.0, 0.0)))
+    fly(hovering, 2.0)
+    first_garbage_at = hovering.state.pos_ned_m.copy()
+    stopped_past_m = 0.0
+    for _ in range(round(5.0 / STEP_S)):   # a stream of bad setpoints: hold where the first one came
+        hovering.set_target(ControlTarget(vel_ned_m_s=(math.nan, 0.0, 0.0)))
+        fly(hovering, STEP_S)
+        stopped_past_m = max(stopped_past_m, hovering.state.pos_ned_m[0] - first_garbage_at[0])
+    assert stopped_past_m > 0.15                                            # braking from 1 m/s takes room
+    assert np.linalg.norm(hovering.state.pos_ned_m - first_garbage_at) < 0.05  # and it came back

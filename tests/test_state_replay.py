@@ -89,6 +89,7 @@ def test_arducopter_position_and_heading(arducopter: Replay) -> None:
 
 
 def test_arducopter_acks_and_texts(arducopter: Replay) -> None:
+    assert len(arducopter.acks) == 26 and len(arducopter.texts) == 51  # README "Message counts"
     arm = arducopter.acks_of(400)
     assert [r for _, r in arm] == [4] * 13 + [0]  # 2.36 during boot, 12 tries 6.65-39.72, accepted 42.72
     assert arm[-1][0] == pytest.approx(42.72, abs=0.02)
@@ -133,6 +134,8 @@ def test_px4_heading_follows_yaw_target(px4: Replay) -> None:
 
 
 def test_px4_double_ack_and_chunked_texts(px4: Replay) -> None:
+    # README counts 19 COMMAND_ACK and 25 STATUSTEXT records; 7 texts came as 2 chunks each
+    assert len(px4.acks) == 19 and len(px4.texts) == 25 - 7
     mode_acks = px4.acks_of(176)
     assert [(t, r) for t, r in mode_acks if 22 < t < 23] == [(22.62, 0), (22.62, 1)]
     assert [r for t, r in mode_acks if 26 < t < 27.5] == [0, 0]
@@ -144,7 +147,9 @@ def test_px4_double_ack_and_chunked_texts(px4: Replay) -> None:
                      "SET_POSITION_TARGET_LOCAL_NED coordinate frame 9 unsupported", "Failsafe activated",
                      "Disarmed by landing", "[logger] ./log/2026-11-25/10_18_14.ulg"):
         assert expected in texts
-    assert not any(t.endswith("\t") or t.endswith("firs") for t in texts)
+    assert "SET_POSITION_TARGET_LOCAL_NED coordinate frame 12 unsupported" in texts  # split after "12 "
+    assert "RTL: start return at 497 m (7 m above destination)" in texts  # 50 chars + a chunk holding "\t"
+    assert not any(t.endswith("\t") or t.endswith("firs") or not t for t in texts)
 
 
 def test_px4_newer_messages_do_not_break_anything(px4: Replay) -> None:

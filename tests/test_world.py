@@ -64,6 +64,10 @@ def write(tmp_path: Path, text: str) -> Path:
     ('{"bounds": {"extents": [0, 6, 0, 5, 0, 2.6]}, "blocks": [{"name": "sofa", "extents": [0, 1, 0, 1]}]}',
      "block 'sofa'"),
     ('{"bounds": {"extents": [0, 6, 0, 5, 0, 2.6]}, "start": {"pos_m": [9, 1]}}', "outside the bounds"),
+    ('{"bounds": {"extents": [0, 6, 0, 5, 0, 2.6]}, "start": {"pos_m": [1, 1]}, '
+     '"blocks": [{"name": "sofa", "extents": [0, 2, 0, 2, 0, 1]}]}', "under block 'sofa'"),
+    ('{"bounds": {"extents": [0, 6, 0, 5, 0, 2.6]}, "walls": "yes"}', "'walls' must be true or false"),
+    ('[1, 2]', "top level must be an object"),
 ])
 def test_malformed_room_gives_one_line_naming_the_file(tmp_path: Path, text: str, says: str) -> None:
     path = write(tmp_path, text)

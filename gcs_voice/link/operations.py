@@ -21,6 +21,11 @@ if TYPE_CHECKING:
 __all__ = ["FlightOperations"]
 
 _NAN = float("nan")
+#: HEARTBEAT.type values this bridge flies (its modes and setpoints are the copter ones)
+MULTICOPTER_TYPES = frozenset({
+    mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_TYPE_HEXAROTOR, mavlink.MAV_TYPE_OCTOROTOR, mavlink.MAV_TYPE_TRICOPTER,
+    mavlink.MAV_TYPE_COAXIAL, mavlink.MAV_TYPE_HELICOPTER, mavlink.MAV_TYPE_DODECAROTOR, mavlink.MAV_TYPE_DECAROTOR,
+})
 #: after a refusal, texts that explain it may still be on their way
 _REASON_GRACE_S = 0.25
 
@@ -29,8 +34,8 @@ class FlightOperations:
     """Mixed into VehicleLink: everything here talks through ``_send``, ``_collectors`` and ``wait_for``."""
 
     # ---- commands -------------------------------------------------------------------------------
-    def _command(self: "VehicleLink", command: int, params: tuple[float, ...], settle_s: float = 0.0
-                 ) -> tuple[CommandAck | None, AckCollector]:
+    def _command(self: "VehicleLink", command: int, params: tuple[float, ...], settle_s: float = 0.0,
+                 retries: int | None = None) -> tuple[CommandAck | None, AckCollector]:
         """Send COMMAND_LONG (with retries) and wait for its ACK; with ``settle_s`` take the last ACK in that window."""
         state = self.state
         collector = AckCollector()
@@ -38,7 +43,7 @@ class FlightOperations:
             self._collectors.append(collector)
         try:
             ack: CommandAck | None = None
-            for confirmation in range(self.settings.command_retries + 1):
+            for confirmation in range((self.settings.command_retries if retries is None else retries) + 1):
                 padded = (list(params) + [0.0] * 7)[:7]
                 self._send(self._conn.mav.command_long_encode(
                     state.system_id or 1, state.component_id or 1, command, confirmation, *padded))
@@ -71,6 +76,8 @@ class FlightOperations:
             return state, OperationResult(operation, TIMED_OUT, "no vehicle on the link")
         if state.profile is None:
             return state, OperationResult(operation, REFUSED, "not an ArduPilot or PX4 flight controller")
+        if state.mav_type not in MULTICOPTER_TYPES:
+            return state, OperationResult(operation, REFUSED, f"vehicle type {state.mav_type} is not a multicopter")
         return state, None
 
     # ---- modes ----------------------------------------------------------------------------------
@@ -118,6 +125,12 @@ class FlightOperations:
             return problem
         if state.armed:
             return OperationResult("arm", ACCEPTED, "already armed")
+        if state.profile.needs_prestream and state.mode == state.profile.velocity_mode and not self.streaming:
+            # PX4 refuses to arm in OFFBOARD without a setpoint stream (and falls back to OFFBOARD by
+            # itself after a failsafe landing): arm in Hold instead
+            step = self.set_mode(state.profile.arm_mode)
+            if not step.ok:
+                return OperationResult("arm", step.status, str(step), step.texts)
         deadline = time.monotonic() + (self.settings.arm_timeout_s if timeout_s is None else timeout_s)
         last: OperationResult | None = None
         while True:
@@ -128,6 +141,8 @@ class FlightOperations:
                     return OperationResult("arm", ACCEPTED, "", tuple(t.text for t in collector.texts))
                 last = OperationResult("arm", TIMED_OUT, "ACK accepted but HEARTBEAT never showed armed")
             self.on_event(str(last))
+            if not self.state.link_ok:
+                return OperationResult("arm", TIMED_OUT, "link lost while arming")
             wait_s = min(self.settings.arm_retry_s, deadline - time.monotonic())
             if wait_s <= 0:
                 return last
@@ -137,13 +152,14 @@ class FlightOperations:
         state, problem = self._vehicle("disarm")
         if problem:
             return problem
-        self.stop_stream()
         if state.armed is False:
+            self.stop_stream()
             return OperationResult("disarm", ACCEPTED, "already disarmed")
         ack, collector = self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (0.0,))
         refused = self._verdict("disarm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, ack, collector)
-        if refused:
+        if refused:  # e.g. in flight: keep streaming, or the vehicle would brake / fail safe
             return refused
+        self.stop_stream()
         if self.wait_for(lambda s: s.armed is False, self.settings.mode_confirm_s) is None:
             return OperationResult("disarm", TIMED_OUT, "HEARTBEAT still shows armed")
         return OperationResult("disarm", ACCEPTED)
@@ -162,7 +178,8 @@ class FlightOperations:
             return problem
         if not (0.0 < altitude_m <= self.settings.ceiling_m):
             return OperationResult(operation, REFUSED, f"altitude must be in (0, {self.settings.ceiling_m:g}] m")
-        if state.armed and state.landed_state == "IN_AIR":
+        airborne = state.landed_state == "IN_AIR" or (state.landed_state is None and (state.height_m or 0.0) > 1.0)
+        if state.armed and airborne:
             return OperationResult(operation, REFUSED, "already flying")
         profile = state.profile
         self.stop_stream()
@@ -170,6 +187,11 @@ class FlightOperations:
         if not step.ok:
             return OperationResult(operation, step.status, str(step), step.texts)
         step = self.arm()
+        if not step.ok:
+            return OperationResult(operation, step.status, str(step), step.texts)
+        # ArduCopter resets the mode when its initialisation ends (3 s after boot) or from the RC switch:
+        # check again, armed, before the take-off (GUIDED may be entered armed on the ground).
+        step = self.set_mode(profile.arm_mode)
         if not step.ok:
             return OperationResult(operation, step.status, str(step), step.texts)
         param7 = altitude_m
@@ -201,15 +223,15 @@ class FlightOperations:
         return OperationResult(operation, ACCEPTED, f"{reached.height_m:.2f} m")
 
     def land(self: "VehicleLink") -> OperationResult:
-        """NAV_LAND at the current position; the stream stops first (both autopilots land on their own)."""
+        """NAV_LAND at the current position; the stream stops once it is accepted (both land on their own)."""
         state, problem = self._vehicle("land")
         if problem:
             return problem
-        self.stop_stream()
         ack, collector = self._command(mavlink.MAV_CMD_NAV_LAND, (0.0, 0.0, 0.0, _NAN, _NAN, _NAN, _NAN))
         refused = self._verdict("land", mavlink.MAV_CMD_NAV_LAND, ack, collector)
-        if refused:
+        if refused:  # keep streaming: without setpoints PX4 fails safe (RTL) and ArduCopter brakes
             return refused
+        self.stop_stream()  # LAND ignores setpoints on both autopilots
         wanted = state.profile.custom_mode(state.profile.land_mode)
         if self.wait_for(lambda s: s.custom_mode == wanted, self.settings.mode_confirm_s) is None:
             return OperationResult("land", TIMED_OUT, f"HEARTBEAT still shows {self.state.mode}")
@@ -229,10 +251,12 @@ class FlightOperations:
         }
         refused: list[str] = []
         for message_id, rate_hz in wanted.items():
-            ack, _ = self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(message_id), 1e6 / rate_hz))
+            ack, _ = self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(message_id), 1e6 / rate_hz),
+                                   retries=0)
             if ack is None or not ack.accepted:
                 refused.append(str(message_id))
-        self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),))
+        self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),), retries=0)
+        self._telemetry_requested = True
         if refused:
             self._send(self._conn.mav.request_data_stream_encode(
                 state.system_id, state.component_id, mavlink.MAV_DATA_STREAM_ALL, self.settings.data_stream_hz, 1))

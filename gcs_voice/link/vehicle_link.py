@@ -39,7 +39,10 @@ class VehicleLink(FlightOperations):
                  on_event: Callable[[str], None] | None = None) -> None:
         self.spec = parse_connection(connection)
         self.settings = settings or load_settings()
-        self.tlog = TlogWriter(tlog_path) if tlog_path else None
+        try:
+            self.tlog = TlogWriter(tlog_path) if tlog_path else None
+        except OSError as exc:
+            raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
         self._conn: Any = None
@@ -50,12 +53,14 @@ class VehicleLink(FlightOperations):
         self._source: SetpointSource | None = None
         self._stop_first = False
         self._link_was_ok = False
+        self._link_was_lost = False
         self._thread: threading.Thread | None = None
         self._running = False
         self._boot_s = time.monotonic()
         self.last_setpoint: Setpoint | None = None
         self.setpoints_sent = 0
         self.read_errors = 0
+        self._telemetry_requested = False
 
     # ---- lifetime -------------------------------------------------------------------------------
     def open(self) -> "VehicleLink":
@@ -109,21 +114,36 @@ class VehicleLink(FlightOperations):
             raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s")
         return state
 
+    def connect(self, timeout_s: float = 30.0) -> VehicleState:
+        """Open, wait for the vehicle and ask for the telemetry the bridge reads (one call for a CLI)."""
+        if self._conn is None:
+            self.open()
+        self.wait_vehicle(timeout_s)
+        result = self.request_telemetry()
+        if not result.ok:
+            self.on_event(str(result))
+        return self.state
+
     # ---- the reader / timer thread --------------------------------------------------------------
     def _loop(self) -> None:
         period_hb, period_sp = 1.0 / self.settings.heartbeat_hz, 1.0 / self.settings.setpoint_hz
         next_hb = next_sp = time.monotonic()
         while self._running:
-            self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
-            now = time.monotonic()
-            if now >= next_hb:
-                next_hb = max(next_hb + period_hb, now)
-                self._send(self._conn.mav.heartbeat_encode(
-                    mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
-            self._check_link(now)
-            if now >= next_sp:
-                next_sp = max(next_sp + period_sp, now)
-                self._stream_tick()
+            try:
+                self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
+                now = time.monotonic()
+                if now >= next_hb:
+                    next_hb = max(next_hb + period_hb, now)
+                    self._send(self._conn.mav.heartbeat_encode(
+                        mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
+                self._check_link(now)
+                if now >= next_sp:
+                    next_sp = max(next_sp + period_sp, now)
+                    self._stream_tick()
+            except Exception as exc:  # this thread is the link: report a bug, never die of it
+                self.read_errors += 1
+                self.on_event(f"link thread error (ignored): {exc!r}")
+                time.sleep(0.05)
 
     def _receive(self, timeout_s: float) -> None:
         try:
@@ -141,11 +161,15 @@ class VehicleLink(FlightOperations):
         if self.tlog is not None:
             self.tlog.write(msg.get_msgbuf())
         with self._changed:
+            mode_before, armed_before = self.tracker.state.mode, self.tracker.state.armed
             events = self.tracker.update(msg, time.monotonic())
+            mode_after, armed_after = self.tracker.state.mode, self.tracker.state.armed
             for event in events:
                 for collector in self._collectors:
                     collector.take(event)
             self._changed.notify_all()
+        if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
+            self.on_event(f"vehicle now {mode_after}, {'armed' if armed_after else 'disarmed'}")
         for event in events:
             if isinstance(event, StatusText):
                 self.on_event(f"vehicle: {event.text}")
@@ -157,10 +181,14 @@ class VehicleLink(FlightOperations):
             return
         self._link_was_ok = state.link_ok
         if not state.link_ok:
-            self._stop_first = True
+            self._stop_first = self._link_was_lost = True
             self.on_event(f"link lost: vehicle silent for {self.settings.link_lost_s:g} s")
+        elif not self._link_was_lost:
+            self.on_event(f"link up: {state.autopilot or 'unknown autopilot'} system {state.system_id}")
         else:
             self.on_event("link back")
+            if self._telemetry_requested:  # a rebooted autopilot forgot our message intervals
+                threading.Thread(target=self.request_telemetry, name="re-request-telemetry", daemon=True).start()
         with self._changed:
             self._changed.notify_all()
 
@@ -192,32 +220,43 @@ class VehicleLink(FlightOperations):
         self.start_stream(self._hold_source())
 
     def _hold_source(self) -> SetpointSource:
+        """Stop at the heading target being streamed, or at the current heading when nothing streams."""
         state = self.state
-        yaw = (self.last_setpoint.yaw_deg if self.last_setpoint is not None
-               else state.heading_deg if state.heading_deg is not None else 0.0)
+        if self._source is not None and self.last_setpoint is not None:
+            yaw = self.last_setpoint.yaw_deg
+        else:
+            yaw = state.heading_deg if state.heading_deg is not None else 0.0
         return lambda _state: Setpoint.stop(yaw)
 
     def _stream_tick(self) -> None:
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
-        if source is None or state.system_id is None or not state.link_ok:
+        if source is None or state.system_id is None:
+            return
+        if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
+            try:
+                source(state)
+            except Exception:
+                pass
             return
         try:
             setpoint = source(state)
         except Exception as exc:  # a broken source must not leave the last velocity running
             self.on_event(f"setpoint source failed ({exc}); holding")
             setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
-        if self._stop_first:
-            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
         self.send_setpoint(setpoint)
 
-    def send_setpoint(self, setpoint: Setpoint) -> None:
-        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; tests may too)."""
+    def send_setpoint(self, setpoint: Setpoint) -> bool:
+        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
+        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then."""
         state = self.state
-        if state.system_id is None:
-            return
+        if state.system_id is None or not state.link_ok:
+            return False
+        if self._stop_first:
+            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
         fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
         self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
         self.last_setpoint = setpoint
         self.setpoints_sent += 1
+        return True

@@ -77,14 +77,14 @@ class ArduCopter(Autopilot):
 
     def heartbeat_fields(self) -> tuple[int, int, int]:
         base = ALWAYS_ON_FLAGS
-        if self.mode in POSITION_CONTROLLED_MODES:
+        if self.mode in POSITION_CONTROLLED_MODES or not self.booted:   # 89 in STABILIZE during boot, as seen
             base |= mavlink.MAV_MODE_FLAG_GUIDED_ENABLED
         if self.vehicle.armed:
             base |= mavlink.MAV_MODE_FLAG_SAFETY_ARMED
         if not self.booted:
             status = mavlink.MAV_STATE_BOOT
-        elif self.vehicle.landed and self.vehicle.behaviour is not Behaviour.TAKEOFF or not self.vehicle.armed:
-            status = mavlink.MAV_STATE_STANDBY
+        elif not self.vehicle.armed or (self.vehicle.landed and self.vehicle.behaviour not in (Behaviour.LAND, Behaviour.RTL)):
+            status = mavlink.MAV_STATE_STANDBY   # land_complete: on the ground, armed or not (LAND disarms first)
         else:
             status = mavlink.MAV_STATE_ACTIVE
         return base, self.mode, status

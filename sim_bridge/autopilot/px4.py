@@ -76,6 +76,7 @@ class PX4(Autopilot):
         limits.yaw_slew_rad_s = None
         limits.auto_yaw_min_speed_m_s = math.inf
         limits.return_alt_m = p("RTL_RETURN_ALT")
+        limits.return_cone_deg = p("RTL_CONE_ANG") or None
         limits.return_speed_m_s = p("MPC_XY_CRUISE")
         fence = self.vehicle.fence
         fence.radius_m = p("GF_MAX_HOR_DIST") or None
@@ -145,7 +146,7 @@ class PX4(Autopilot):
             vehicle.follow(vehicle.setpoint, from_ground=True)
         elif mode != TAKEOFF:
             vehicle.hold()
-        self.out.send_heartbeat_now()
+        # no extra HEARTBEAT: PX4 reports the new mode in its next 1 Hz beat
 
     def request_mode(self, main: int, sub: int) -> int:
         """Commander's verdict on a mode request (the second ACK)."""
@@ -222,7 +223,6 @@ class PX4(Autopilot):
         if self.failsafe_intended is not None:
             self.mode = self.failsafe_intended     # PX4 goes back to the mode the user had chosen
             self.failsafe_intended = None
-            self.out.send_heartbeat_now()
 
     def _takeoff(self, alt_amsl_param: float) -> int:
         vehicle = self.vehicle
@@ -238,13 +238,12 @@ class PX4(Autopilot):
 
     def _start_rtl(self, failsafe: bool = False) -> None:
         vehicle = self.vehicle
-        if vehicle.armed and not vehicle.landed:
-            above = max(-float(vehicle.state.pos_ned_m[2]), vehicle.limits.return_alt_m)
-            if vehicle.ceiling_m is not None:
-                above = min(above, vehicle.ceiling_m - 0.4)
+        flying = vehicle.armed and not vehicle.landed
+        self._switch(RTL, failsafe=failsafe)
+        if flying:
+            above = vehicle.rtl_alt_m
             self.out.text(mavlink.MAV_SEVERITY_INFO,
                           f"RTL: start return at {self.home[2] + above:.0f} m ({above:.0f} m above destination)\t")
-        self._switch(RTL, failsafe=failsafe)
 
     # ----------------------------------------------------------------- setpoints and time
     def on_rejected_setpoint(self, rejected: SetpointRejected) -> None:
@@ -285,7 +284,6 @@ class PX4(Autopilot):
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarmed by landing\t")
                 if self.failsafe_intended is not None:
                     self.mode, self.failsafe_intended = self.failsafe_intended, None
-                    self.out.send_heartbeat_now()
             elif event is VehicleEvent.DISARMED_IDLE:
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarmed by auto preflight disarming\t")
         if self.mode == OFFBOARD_MODE and vehicle.armed and not self.offboard_signal():

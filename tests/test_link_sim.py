@@ -1,0 +1,205 @@
+"""The link and the mapper against the real bundled simulator (gcs-sim) on loopback: outcomes in flight.
+
+The simulator runs as its own process (``python -m sim_bridge.cli``), as a vehicle would: the link
+never imports it. Real time, because the link's timers (10 Hz stream, 2 s link loss) are wall-clock.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+from pymavlink import mavutil
+
+from gcs_voice.actions import ActionMapper
+from gcs_voice.link import VehicleLink
+from gcs_voice.settings import load_settings
+from link_peer import free_udp_port
+
+REPO = Path(__file__).resolve().parent.parent
+pytestmark = pytest.mark.slow
+
+
+class Sim:
+    def __init__(self, autopilot: str, tmp_path: Path, *extra: str) -> None:
+        self.port = free_udp_port()
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "sim_bridge.cli", "--out", f"udp:127.0.0.1:{self.port}", "--autopilot", autopilot,
+             "--room", "open_field", "--duration", "120", *extra],
+            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+        )
+
+    def ready_line(self) -> str:
+        return self.proc.stdout.readline()
+
+    def __enter__(self) -> "Sim":
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        if self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGCONT)
+            self.proc.terminate()
+            try:
+                self.proc.wait(timeout=5)
+            except subprocess.TimeoutExpired:
+                self.proc.kill()
+                self.proc.wait()
+
+
+def _fly(link: VehicleLink, mapper: ActionMapper, action: str, seconds: float) -> None:
+    mapper.apply(action, link.state)
+    time.sleep(seconds)
+
+
+def _heading_error_deg(heading_deg: float, target_deg: float) -> float:
+    return abs((heading_deg - target_deg + 180.0) % 360.0 - 180.0)
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -> None:
+    settings = load_settings()
+    mapper = ActionMapper(settings)
+    with Sim(autopilot, tmp_path) as sim, VehicleLink(f"udpin:127.0.0.1:{sim.port}", settings,
+                                                      tlog_path=tmp_path / "flight.tlog") as link:
+        state = link.connect(timeout_s=20)
+        assert state.autopilot == ("PX4" if autopilot == "px4" else "ArduPilot")
+        result = link.takeoff(1.5, source=mapper.setpoint)
+        assert result.ok, result
+        mapper.reset_heading(link.state)
+        link.start_stream(mapper.setpoint)
+        assert link.state.mode == ("OFFBOARD" if autopilot == "px4" else "GUIDED")
+        assert 1.2 < link.state.height_m < 1.9
+        heading0 = mapper.yaw_target_deg
+
+        start = link.state
+        _fly(link, mapper, "go_forward", 3.0)
+        _fly(link, mapper, "stop", 1.5)
+        moved = link.state
+        forward_m = (moved.north_m - start.north_m) * math.cos(math.radians(heading0)) + \
+                    (moved.east_m - start.east_m) * math.sin(math.radians(heading0))
+        sideways_m = -(moved.north_m - start.north_m) * math.sin(math.radians(heading0)) + \
+                     (moved.east_m - start.east_m) * math.cos(math.radians(heading0))
+        assert 0.8 < forward_m < 2.5 and abs(sideways_m) < 0.3
+
+        _fly(link, mapper, "turn_right", 3.5)
+        _fly(link, mapper, "turn_right", 3.5)
+        assert mapper.yaw_target_deg == pytest.approx((heading0 + 180.0) % 360.0)
+        assert _heading_error_deg(link.state.heading_deg, heading0 + 180.0) < 8.0
+
+        start = link.state
+        _fly(link, mapper, "go_right", 2.5)  # facing back: right is the original left
+        _fly(link, mapper, "stop", 1.5)
+        moved = link.state
+        left_of_start_m = (moved.north_m - start.north_m) * -math.sin(math.radians(heading0)) + \
+                          (moved.east_m - start.east_m) * -math.cos(math.radians(heading0))
+        assert left_of_start_m > 0.6, "go_right after a 180 deg turn must move toward the original left"
+        assert _heading_error_deg(moved.heading_deg, heading0 + 180.0) < 8.0  # heading kept while moving
+
+        before_up = link.state.height_m
+        _fly(link, mapper, "up", 2.0)
+        assert link.state.height_m > before_up + 0.3
+        _fly(link, mapper, "turn_left", 3.5)
+        _fly(link, mapper, "turn_left", 3.5)
+        assert mapper.yaw_target_deg == pytest.approx(heading0 % 360.0)
+        assert _heading_error_deg(link.state.heading_deg, heading0) < 8.0
+        start = link.state
+        _fly(link, mapper, "go_back", 2.0)
+        _fly(link, mapper, "stop", 1.5)
+        moved = link.state
+        back_m = (moved.north_m - start.north_m) * math.cos(math.radians(heading0)) + \
+                 (moved.east_m - start.east_m) * math.sin(math.radians(heading0))
+        assert back_m < -0.4
+
+        _fly(link, mapper, "down", 0.0)
+        reached = link.wait_for(lambda s: mapper.action == "stop", 15.0)
+        assert reached is not None, "down never stopped at the floor"
+        time.sleep(1.5)
+        assert 0.3 < link.state.height_m < 0.75
+        assert "floor" in mapper.events[-1]
+
+        landed = link.land()
+        assert landed.ok, landed
+        assert link.state.mode == "LAND" and not link.streaming
+        touchdown = link.wait_for(lambda s: s.landed_state == "ON_GROUND" or (s.height_m or 0.0) < 0.1, 15.0)
+        assert touchdown is not None, "never reached the ground after LAND"
+        if autopilot == "ardupilot":
+            # gcs-sim's PX4 personality (sim-mavlink fbf2b4b) sometimes throws the vehicle up again after
+            # touchdown in LAND and never disarms: reported to the lead; checked here for ArduCopter only.
+            track = []
+            disarmed = link.wait_for(lambda s: track.append((s.mode, s.landed_state, round(s.height_m or 0, 2))) or
+                                     s.armed is False, 20.0)
+            assert disarmed is not None, f"not disarmed 20 s after LAND; (mode, landed, height): {track[::10]}"
+    # the tlog holds our setpoints, all in the one encoding
+    log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
+    encodings, setpoint_t, mode_requests = set(), [], []
+    while (msg := log.recv_match(type=["SET_POSITION_TARGET_LOCAL_NED", "COMMAND_LONG"])) is not None:
+        if msg.get_type() == "SET_POSITION_TARGET_LOCAL_NED":
+            encodings.add((msg.coordinate_frame, msg.type_mask))
+            setpoint_t.append(msg._timestamp)
+        elif msg.command == 176:
+            mode_requests.append((msg._timestamp, msg.param2, msg.param3))
+    assert encodings == {(1, 2503)}
+    if autopilot == "px4":  # OFFBOARD asked for only after >= 0.5 s of setpoints at > 2 Hz
+        offboard_t = [t for t, main, sub in mode_requests if (main, sub) == (6, 0)]
+        assert offboard_t
+        before = [t for t in setpoint_t if t < offboard_t[0]]
+        assert len(before) >= 5 and offboard_t[0] - before[0] >= 0.5
+        assert max(b - a for a, b in zip(before, before[1:])) < 0.5
+        assert all(main != 4 or sub != 0 for _, main, sub in mode_requests)  # never ArduCopter's GUIDED number
+    else:
+        assert {(main, sub) for _, main, sub in mode_requests} == {(4.0, 0.0)}  # GUIDED only
+
+
+def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
+    """SIGSTOP the simulator: link lost after 2 s, nothing sent; SIGCONT: the first setpoint is a stop."""
+    settings = load_settings()
+    mapper = ActionMapper(settings)
+    tlog = tmp_path / "loss.tlog"
+    with Sim("ardupilot", tmp_path) as sim, VehicleLink(f"udpin:127.0.0.1:{sim.port}", settings, tlog_path=tlog) as link:
+        link.connect(timeout_s=20)
+        assert link.takeoff(1.5, source=mapper.setpoint).ok
+        mapper.reset_heading(link.state)
+        link.start_stream(mapper.setpoint)
+        mapper.apply("go_forward", link.state)
+        time.sleep(1.0)
+        os.kill(sim.proc.pid, signal.SIGSTOP)
+        paused_wall = time.time()
+        assert link.wait_for(lambda s: not s.link_ok, 3.5) is not None
+        lost_wall = time.time()
+        assert 1.8 < lost_wall - paused_wall < 2.8
+        time.sleep(1.0)
+        os.kill(sim.proc.pid, signal.SIGCONT)
+        assert link.wait_for(lambda s: s.link_ok, 5.0) is not None
+        time.sleep(1.0)
+        assert mapper.action == "stop"  # the mapper also turned the lost action into a stop
+        assert link.land().ok
+    log = mavutil.mavlink_connection(str(tlog))
+    sent = []
+    while (msg := log.recv_match(type="SET_POSITION_TARGET_LOCAL_NED")) is not None:
+        sent.append((msg._timestamp, msg))
+    during = [t for t, _ in sent if lost_wall + 0.15 < t < lost_wall + 1.0]
+    assert not during, "setpoints were sent while the link was lost"
+    after = [m for t, m in sent if t > lost_wall + 1.0]
+    assert after and (after[0].vx, after[0].vy, after[0].vz) == (0.0, 0.0, 0.0)
+    before = [m for t, m in sent if t < paused_wall]
+    assert math.hypot(before[-1].vx, before[-1].vy) == pytest.approx(settings.horizontal_speed_m_s)
+
+
+def test_tcp_client_to_the_simulator(tmp_path: Path) -> None:
+    """``--connect tcp:HOST:PORT`` (like SITL's 5760): state and telemetry arrive, commands are answered."""
+    with Sim("ardupilot", tmp_path, "--tcp", "0") as sim:
+        line = sim.ready_line()
+        match = re.search(r"tcp (127\.0\.0\.1:\d+)", line)
+        assert match, line
+        with VehicleLink(f"tcp:{match.group(1)}") as link:
+            state = link.connect(timeout_s=10)
+            assert state.autopilot == "ArduPilot"
+            assert link.wait_for(lambda s: s.heading_deg is not None and s.height_m is not None, 3.0) is not None
+            assert link.set_mode("GUIDED").ok
