@@ -80,13 +80,14 @@ def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tup
               outs: Sequence[str] = (), tcp: Sequence[str] = (), tlog: Path | None = None,
               epoch_unix_s: float | None = None):
     """A ready SimServer (nothing runs until ``step``/``run_for``/``serve``)."""
+    from sim_bridge.fdm import GEAR_HEIGHT_M
     from sim_bridge.frames import room_to_ned
     from sim_bridge.mavlink_server import SimServer
     from sim_bridge.multicopter import Multicopter
     from sim_bridge.params import load_params
     from sim_bridge.transport import TcpServer, TlogWriter, TransportError, UdpOutLink, parse_endpoint
     from sim_bridge.vehicle import Vehicle
-    from sim_bridge.world import load_room
+    from sim_bridge.world import load_contact_params, load_room
 
     if autopilot not in AUTOPILOTS:
         raise SimUsageError(f"--autopilot {autopilot!r}: one of {', '.join(AUTOPILOTS)}")
@@ -108,10 +109,13 @@ def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tup
     multicopter = Multicopter(room_obj, **kwargs)
     vehicle = Vehicle(multicopter)
     if room_obj.walls:
+        # Where the gear point may go: walls and ceiling less the vehicle's contact sphere (and its CG height).
+        radius_m = load_contact_params().vehicle_radius_m
         lo = room_to_ned(room_obj.bounds_min_m, room_obj.start_xy_m)
         hi = room_to_ned(room_obj.bounds_max_m, room_obj.start_xy_m)
-        vehicle.room_box_ned_m = (min(lo[0], hi[0]), max(lo[0], hi[0]), min(lo[1], hi[1]), max(lo[1], hi[1]))
-        vehicle.ceiling_m = room_obj.bounds_max_m[2] - room_obj.bounds_min_m[2]
+        vehicle.room_box_ned_m = (min(lo[0], hi[0]) + radius_m, max(lo[0], hi[0]) - radius_m,
+                                  min(lo[1], hi[1]) + radius_m, max(lo[1], hi[1]) - radius_m)
+        vehicle.ceiling_m = room_obj.bounds_max_m[2] - room_obj.bounds_min_m[2] - GEAR_HEIGHT_M - radius_m
     params = load_params(autopilot)
     home_fix = (multicopter.home_lat_deg, multicopter.home_lon_deg, multicopter.home_alt_m)
     server = SimServer(vehicle, autopilot, params, home_fix, tlog=TlogWriter(tlog) if tlog else None,
@@ -159,7 +163,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         server.close()
     s = server.stats
     print(f"gcs-sim: stopped after {server.vehicle.time_s:.1f} s simulated; sent {s.sent}, received {s.received}; "
-          f"{server.summary_text()}{'; tlog ' + str(args.tlog) + f' ({server.tlog.records} records)' if args.tlog else ''}",
+          f"{server.summary_text()}{'; tlog ' + str(args.tlog) + f' ({server.tlog.records} records)' if args.tlog else ''}"
+          f"{f'; {s.handler_errors} handler errors, last {server.last_handler_error}' if s.handler_errors else ''}",
           flush=True)
     return 0
 

@@ -73,6 +73,7 @@ class SimServer:
         self._last_summary = ""
         self._next_summary_s = STATS_PERIOD_S
         self._home_sent = False
+        self.last_handler_error = ""
         self.autopilot: Autopilot = personality_class(autopilot)(vehicle, params, self, home, self.epoch_unix_s)
         self.param_protocol = ParamProtocol(params, self)
         self.schedule = telemetry.Schedule()
@@ -142,7 +143,13 @@ class SimServer:
                                                        self._text_id, seq))
 
     def send_heartbeat_now(self) -> None:
-        self.send(telemetry.build(mavlink.MAVLINK_MSG_ID_HEARTBEAT, self.autopilot, self._tlog_mav))
+        self.send_now(mavlink.MAVLINK_MSG_ID_HEARTBEAT)
+
+    def send_now(self, msg_id: int) -> None:
+        """Send one message outside its schedule (mode change HEARTBEAT, HOME_POSITION when home is set)."""
+        msg = telemetry.build(msg_id, self.autopilot, self._tlog_mav)
+        if msg is not None:
+            self.send(msg)
 
     def _ack(self, command: int, result: int, link: Link, src_system: int, src_component: int) -> None:
         self.send(self._tlog_mav.command_ack_encode(command, result, 0, 0, src_system, src_component), link)
@@ -204,8 +211,9 @@ class SimServer:
             return
         try:
             handler(self, msg, link)
-        except Exception:
+        except Exception as exc:   # a bug, never fatal: counted and named in the exit line
             self.stats.handler_errors += 1
+            self.last_handler_error = f"{kind}: {exc!r}"
 
     def _on_command(self, msg: Any, link: Link) -> None:
         if msg.get_type() == "COMMAND_INT":
@@ -289,7 +297,7 @@ class SimServer:
             self.text(mavlink.MAV_SEVERITY_INFO, text)
         if self.autopilot.booted and not self._home_sent:
             self._home_sent = True      # ArduCopter sends HOME_POSITION when home is set
-            self.send(telemetry.build(mavlink.MAVLINK_MSG_ID_HOME_POSITION, self.autopilot, self._tlog_mav))
+            self.send_now(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
         self.param_protocol.trickle()
         for msg_id in self.schedule.due(self.vehicle.time_s):
             msg = telemetry.build(msg_id, self.autopilot, self._tlog_mav)

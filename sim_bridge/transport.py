@@ -20,7 +20,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 __all__ = ["Link", "UdpOutLink", "TcpClientLink", "TcpServer", "TlogWriter", "parse_endpoint", "TransportError"]
 
 #: How much one poll reads from one link at most, so a flood cannot starve the physics.
-MAX_DATAGRAMS_PER_POLL = 256
+MAX_DATAGRAMS_PER_POLL = 64
 MAX_TCP_BYTES_PER_POLL = 65536
 #: A TCP client whose unsent backlog grows beyond this is too slow and is dropped.
 MAX_TCP_BACKLOG_BYTES = 1 << 20

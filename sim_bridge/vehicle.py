@@ -16,9 +16,10 @@ from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.fence import FENCE_BRAKE_ACCEL_M_S2, Fence
 from sim_bridge.setpoints import Setpoint
 
-__all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]
+__all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]   # Fence re-exported
 
 #: Below this climb (m) after a takeoff started the vehicle is still "on the ground" for the auto-disarm.
 LIFTOFF_HEIGHT_M = 0.1
@@ -26,10 +27,8 @@ LIFTOFF_HEIGHT_M = 0.1
 HOLD_CAPTURE_SPEED_M_S = 0.15
 #: Gain turning a per-axis position target into a velocity (used when position and velocity are mixed).
 POSITION_TO_VELOCITY_PER_S = 1.0
-#: Deceleration assumed when stopping before a fence (AC_Avoid uses the position controller's accel).
-FENCE_BRAKE_ACCEL_M_S2 = 1.5
-#: Altitude targets stay this far below the room ceiling.
-CEILING_MARGIN_M = 0.4
+#: Altitude targets stay this far below ``ceiling_m`` (the highest the gear point can go without touching).
+CEILING_MARGIN_M = 0.2
 
 
 class Behaviour(enum.Enum):
@@ -71,50 +70,6 @@ class VehicleLimits:
     return_speed_m_s: float = 5.0
 
 
-@dataclass
-class Fence:
-    """Inclusion fence (NED metres from home): stop before it, like ArduCopter's fence avoidance."""
-
-    enabled: bool = False
-    margin_m: float = 0.5
-    alt_max_m: float | None = None
-    radius_m: float | None = None
-    box_ned_m: tuple[float, float, float, float] | None = None   # north_min, north_max, east_min, east_max
-
-    def limit(self, pos: tuple[float, float, float], vel: list[float]) -> bool:
-        """Reduce the outward components of ``vel`` (in place) so the vehicle stops inside. True if changed."""
-        if not self.enabled:
-            return False
-        changed = False
-
-        def cap(component: int, distance_m: float, outward_sign: float) -> None:
-            nonlocal changed
-            allowed = math.sqrt(2.0 * FENCE_BRAKE_ACCEL_M_S2 * max(0.0, distance_m - self.margin_m))
-            if vel[component] * outward_sign > allowed:
-                vel[component] = outward_sign * allowed
-                changed = True
-
-        if self.alt_max_m is not None:
-            cap(2, self.alt_max_m - (-pos[2]), -1.0)
-        if self.box_ned_m is not None:
-            n_min, n_max, e_min, e_max = self.box_ned_m
-            cap(0, n_max - pos[0], 1.0)
-            cap(0, pos[0] - n_min, -1.0)
-            cap(1, e_max - pos[1], 1.0)
-            cap(1, pos[1] - e_min, -1.0)
-        if self.radius_m is not None:
-            dist = math.hypot(pos[0], pos[1])
-            if dist > 1e-6:
-                ux, uy = pos[0] / dist, pos[1] / dist
-                outward = vel[0] * ux + vel[1] * uy
-                allowed = math.sqrt(2.0 * FENCE_BRAKE_ACCEL_M_S2 * max(0.0, self.radius_m - dist - self.margin_m))
-                if outward > allowed:
-                    vel[0] -= (outward - allowed) * ux
-                    vel[1] -= (outward - allowed) * uy
-                    changed = True
-        return changed
-
-
 def _wrap_pi(angle_rad: float) -> float:
     return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
@@ -132,8 +87,8 @@ class Vehicle:
     multicopter: Any
     limits: VehicleLimits = field(default_factory=VehicleLimits)
     fence: Fence = field(default_factory=Fence)
-    ceiling_m: float | None = None          # room height above the home floor, if known
-    room_box_ned_m: tuple[float, float, float, float] | None = None   # walls: north_min, north_max, east_min, east_max
+    ceiling_m: float | None = None          # highest gear altitude (m above home) before the vehicle touches the ceiling
+    room_box_ned_m: tuple[float, float, float, float] | None = None   # where the gear point fits: n_min, n_max, e_min, e_max
     time_s: float = 0.0
     behaviour: Behaviour = Behaviour.IDLE
     setpoint: Setpoint | None = None
@@ -141,6 +96,7 @@ class Vehicle:
     fence_stops: int = 0
 
     def __post_init__(self) -> None:
+        self._state: Any = None
         self._hold = _Hold(yaw_rad=self.state.yaw_rad)
         self._yaw_target_rad: float = self.state.yaw_rad
         self._takeoff_alt_m = 0.0
@@ -156,7 +112,10 @@ class Vehicle:
     # ----------------------------------------------------------------- state
     @property
     def state(self) -> Any:
-        return self.multicopter.state
+        """The physics state, read once per tick (building it costs more than everything that reads it)."""
+        if self._state is None:
+            self._state = self.multicopter.state
+        return self._state
 
     @property
     def armed(self) -> bool:
@@ -186,12 +145,14 @@ class Vehicle:
     # ----------------------------------------------------------------- commands
     def arm(self) -> None:
         self.multicopter.set_armed(True)
+        self._state = None
         self._armed_idle_since_s = self.time_s
         if self.behaviour is not Behaviour.TAKEOFF:
             self.behaviour = Behaviour.IDLE if self.landed else Behaviour.HOLD
 
     def disarm(self) -> None:
         self.multicopter.set_armed(False)
+        self._state = None
         self._armed_idle_since_s = None
         self.behaviour = Behaviour.IDLE
 
@@ -199,7 +160,8 @@ class Vehicle:
         """Climb to ``alt_m`` above home after the spool-up; the caller checked armed and landed."""
         self._takeoff_alt_m = self._cap_altitude(alt_m)
         self._takeoff_started_s = self.time_s
-        self._hold = _Hold(point_ned_m=None, yaw_rad=self.state.yaw_rad)
+        self._yaw_target_rad = float(self.state.yaw_rad)
+        self._hold = _Hold(point_ned_m=None, yaw_rad=self._yaw_target_rad)
         self.behaviour = Behaviour.TAKEOFF
 
     def hold(self) -> None:
@@ -270,7 +232,7 @@ class Vehicle:
             target, done = self._takeoff_target(pos)
             if done:
                 events.append(VehicleEvent.TAKEOFF_DONE)
-                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._yaw_target_rad)
+                self._hold = _Hold(point_ned_m=(pos[0], pos[1], -self._takeoff_alt_m), yaw_rad=self._hold.yaw_rad)
                 self.behaviour = Behaviour.HOLD
         elif self.behaviour is Behaviour.VELOCITY:
             target = self._velocity_target(pos, dt_s)
@@ -282,6 +244,7 @@ class Vehicle:
         if target is not None:
             self.multicopter.set_target(target)
         self.multicopter.step(dt_s)
+        self._state = None
         self.time_s += dt_s
         events.extend(self._after_step())
         return events

@@ -170,6 +170,12 @@ def heartbeat_modes(timeline) -> dict[tuple, set[tuple]]:
     return seen
 
 
+def version_fields(log) -> tuple:
+    """AUTOPILOT_VERSION (asked with REQUEST_MESSAGE in both captures): what a GCS identifies firmware by."""
+    m = next(m for _t, m in log if m.get_type() == "AUTOPILOT_VERSION")
+    return m.capabilities, m.flight_sw_version, bytes(m.flight_custom_version)
+
+
 def at(timeline, kind: str, t_s: float):
     """The last message of ``kind`` from the vehicle at or before ``t_s``."""
     last = None
@@ -182,6 +188,7 @@ def at(timeline, kind: str, t_s: float):
 
 
 # ---------------------------------------------------------------------------- the committed fixture
+@pytest.mark.slow
 def test_fixture_parses_and_the_current_sim_still_flies_it_the_same() -> None:
     recorded = read_tlog(FIXTURE)
     assert len(recorded) > 500 and FIXTURE.stat().st_size < 60_000
@@ -193,7 +200,7 @@ def test_fixture_parses_and_the_current_sim_still_flies_it_the_same() -> None:
     assert outcomes(replayed, "ardupilot") == outcomes(recorded, "ardupilot")
     for t_s in (12.0, 17.0, 20.0, 28.0):   # hovering, after the forward leg, after the turn, landed
         then, now = at(recorded, "LOCAL_POSITION_NED", t_s), at(replayed, "LOCAL_POSITION_NED", t_s)
-        assert math.dist((then.x, then.y, then.z), (now.x, now.y, now.z)) < 0.2, f"flight path drifted at {t_s} s"
+        assert math.dist((then.x, then.y, then.z), (now.x, now.y, now.z)) < 0.5, f"flight path drifted at {t_s} s"
 
 
 # ---------------------------------------------------------------------------- against real ArduCopter
@@ -219,6 +226,7 @@ def test_arducopter_acks_match_real_in_the_same_situations(arducopter) -> None:
 def test_arducopter_heartbeat_messages_and_rates_match_real(arducopter) -> None:
     real, sim = arducopter
     assert vehicle_types(sim) <= vehicle_types(real), "the sim invents no message ArduCopter does not send"
+    assert version_fields(sim) == version_fields(real)
     real_modes, sim_modes = heartbeat_modes(real), heartbeat_modes(sim)
     for pair in set(real_modes) & set(sim_modes):
         assert sim_modes[pair] <= real_modes[pair], f"HEARTBEAT for (mode, armed) {pair}"
@@ -265,6 +273,7 @@ def test_px4_acks_match_real_in_the_same_situations(px4) -> None:
 def test_px4_heartbeat_messages_rates_and_failsafe_match_real(px4) -> None:
     real, sim = px4
     assert vehicle_types(sim) <= vehicle_types(real), "the sim invents no message PX4 does not send"
+    assert version_fields(sim) == version_fields(real)
     real_modes, sim_modes = heartbeat_modes(real), heartbeat_modes(sim)
     for pair in set(real_modes) & set(sim_modes):
         assert {b for b, _s in sim_modes[pair]} <= {b for b, _s in real_modes[pair]}, f"base_mode for {pair}"

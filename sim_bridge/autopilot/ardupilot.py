@@ -179,6 +179,7 @@ class ArduCopter(Autopilot):
             return mavlink.MAV_RESULT_FAILED
         vehicle.arm()
         self.out.text(mavlink.MAV_SEVERITY_INFO, "Arming motors")
+        self.out.send_now(mavlink.MAVLINK_MSG_ID_HOME_POSITION)   # home is (re)set at arming
         return mavlink.MAV_RESULT_ACCEPTED
 
     def _takeoff(self, alt_param: float) -> int:
