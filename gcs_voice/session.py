@@ -94,6 +94,10 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     steps = _script(config)
     for step in steps:
         read_utterance(step.path)  # a missing or unusable WAV fails here, before any flight
+    if not steps:
+        from gcs_voice.audio_input import check_microphone
+
+        check_microphone()
     tlog, jsonl = session_paths(config.log_dir, config.log_name)
 
     bus = EventBus()
