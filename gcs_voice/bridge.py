@@ -72,7 +72,6 @@ class Bridge:
         self._op_thread: threading.Thread | None = None
         self._link_ok: bool | None = None
         self._limit_reason = ""
-        self._mapper_events_seen = 0
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
 
@@ -131,10 +130,8 @@ class Bridge:
                 self.bus.emit("link", f"link LOST: vehicle silent for {self.link.settings.link_lost_s:g} s; "
                               "nothing is commanded until it returns, then a stop", state="lost")
             self._link_ok = state.link_ok
-        events = list(self.mapper.events)
-        for text in events[self._mapper_events_seen:] if len(events) >= self._mapper_events_seen else events:
-            self.bus.emit("warning", text, source="mapper")
-        self._mapper_events_seen = len(events)
+        while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
+            self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
         reason = self.mapper.limit_reason
         if reason != self._limit_reason:
             if reason:

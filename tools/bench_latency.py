@@ -176,6 +176,7 @@ def main(argv: list[str] | None = None) -> int:
                    f"espeak-ng, 2 takes x {len(SEQUENCE)} phrases ({len(items)} utterances, voices and phrases "
                    "in tools/bench_latency.py SEQUENCE)")
     rows = []
+    best: tuple[float, str, str] | None = None  # (b) p95, engine, load
     for engine in [e.strip() for e in args.engines.split(",") if e.strip()]:
         model = args.whisper_model if engine == "whisper" else None
         try:
@@ -194,6 +195,8 @@ def main(argv: list[str] | None = None) -> int:
                 f"{len(c)} | {percentile(c, .5):.0f} | {percentile(c, .95):.0f} | {load} |")
         rows.append(line)
         print(line, f"({time.monotonic() - started:.0f} s)")
+        if b and (best is None or percentile(b, .95) < best[0]):
+            best = (percentile(b, .95), engine, load)
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
@@ -215,12 +218,31 @@ def main(argv: list[str] | None = None) -> int:
         "",
         f"Machine: {_machine()}.",
         "",
+        _verdict(best),
+        "",
+        "Where the time goes: (b)-(a) is the bridge itself (request queue, action mapper, one UDP send), a few",
+        "milliseconds; the rest of (b) is the recogniser after the end of the audio. PocketSphinx here decodes",
+        "each utterance whole at its end (gcs_voice/asr/sphinx_engine.py: streamed decoding lost words), and",
+        "Whisper transcribes after the end by design, so both scale with CPU load on a shared machine. (c) adds",
+        "the vehicle: the simulator's velocity loop is jerk-limited like ArduCopter's (see ../shared/tlogs), and",
+        "telemetry arrives at 10 Hz. The paper's pipeline made a cloud round trip at this point.",
+        "",
     ])
     print(report)
     if args.out:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(report, encoding="utf-8")
     return 0
+
+
+def _verdict(best: tuple[float, str, str] | None) -> str:
+    target = 300.0
+    if best is None:
+        return f"Target (b) p95 <= {target:.0f} ms: no engine timed."
+    p95, engine, load = best
+    met = "met" if p95 <= target else "NOT met"
+    return (f"Target (b) p95 <= {target:.0f} ms with the fastest engine: {met} ({engine}, p95 {p95:.0f} ms, "
+            f"machine load {load} on 2 CPUs).")
 
 
 def _load() -> str:
