@@ -7,7 +7,8 @@ Three kinds of thread meet here. The voice side (``gcs_voice.listen``) and the k
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
-- motion while disarmed, or during take-off/landing: refused with the reason;
+- motion while disarmed, outside the velocity mode, or during take-off/landing: refused with the reason;
+- disarm while flying: refused (a misheard word must not drop the vehicle);
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
 - whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
@@ -31,6 +32,8 @@ __all__ = ["Bridge", "Request", "status_of"]
 LOOP_PERIOD_S = 0.05
 #: how long the final stop is kept on the wire before the link closes (several 10 Hz setpoints)
 FINAL_STOP_S = 0.6
+#: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
+ON_GROUND_HEIGHT_M = 0.2
 
 
 @dataclass
@@ -56,6 +59,14 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
     link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
             "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+
+
+def _on_ground(state: Any) -> bool:
+    """Landed by the autopilot's own word (EXTENDED_SYS_STATE), else by height above home."""
+    if state.landed_state is not None:
+        return state.landed_state == "ON_GROUND"
+    height = state.height_m
+    return height is not None and height < ON_GROUND_HEIGHT_M
 
 
 class Bridge:
@@ -152,6 +163,9 @@ class Bridge:
         if action in FLIGHT_ACTIONS:
             if self._busy:
                 return self._refuse(request, f"busy: {self._busy} in progress")
+            if action == "disarm" and not _on_ground(state):
+                # A misheard "disarm" in the air would drop the vehicle: only on the ground.
+                return self._refuse(request, "the vehicle is flying: say 'land' first")
             self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
             self._start_operation(request)
             return None
