@@ -49,7 +49,8 @@ class SphinxRecognizer:
         self.settings = engine_settings("sphinx")
         model_dir = sphinx_model_dir(model)
         config = Config(hmm=str(model_dir / "en-us"), dict=str(model_dir / "cmudict-en-us.dict"),
-                        lm=None, loglevel="FATAL")
+                        lm=None, loglevel="FATAL", beam=float(self.settings.get("beam", 1e-48)),
+                        wbeam=float(self.settings.get("wbeam", 7e-29)))
         try:
             self.decoder = Decoder(config)
         except Exception as exc:  # pocketsphinx raises RuntimeError with no detail

@@ -122,6 +122,9 @@ class WhisperRecognizer:
         chosen = None
         for temperature in s.get("temperature", [0.0]):
             if temperature > 0:
+                import ctranslate2
+
+                ctranslate2.set_random_seed(int(s.get("sampling_seed", 0)))  # same audio, same answer
                 kwargs = {"beam_size": 1, "num_hypotheses": n_best, "sampling_topk": 0,
                           "sampling_temperature": float(temperature)}
             else:
