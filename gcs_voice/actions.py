@@ -3,7 +3,8 @@
 ``go_*`` move in the body frame of the heading *target* and keep it; ``up``/``down`` change height;
 ``turn_*`` move the heading target by exactly ``turn_step_deg`` from the current target (two
 "turn right" make 180); ``stop`` holds (zero velocity, same heading target). An action lasts until the
-next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home; climbs stop at ``ceiling_m``;
+next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home, or above whatever a fresh
+downward rangefinder sees (a table), whichever is nearer; climbs stop at ``ceiling_m``;
 horizontal motion stops at ``fence_radius_m`` from home (only the outward motion). Unknown height or
 position counts as "at the limit": the mapper does not command what it cannot check. A lost link
 turns the action into ``stop``, so the first setpoint after the link returns is a hold.
@@ -102,9 +103,12 @@ class ActionMapper:
         if state.last_heard_s is not None and not state.link_ok:
             self._switch_to_stop("link lost")
         height = state.height_m if _finite(state.height_m) else None
-        if self.action == "down" and (height is None or height <= self.settings.floor_m):
-            self._switch_to_stop(f"floor {self.settings.floor_m:g} m reached" if height is not None
-                                 else "height unknown")
+        clearance = state.ground_clearance_m if _finite(state.ground_clearance_m) else None
+        above_ground = height if clearance is None or height is None else min(height, clearance)
+        if self.action == "down" and (above_ground is None or above_ground <= self.settings.floor_m):
+            what = "height unknown" if above_ground is None else (
+                f"floor {self.settings.floor_m:g} m reached" + (" (rangefinder)" if above_ground != height else ""))
+            self._switch_to_stop(what)
         h_speed, v_speed = self.settings.horizontal_speed_m_s, self.settings.vertical_speed_m_s
         forward, right, down = {
             "go_forward": (h_speed, 0.0, 0.0), "go_back": (-h_speed, 0.0, 0.0),

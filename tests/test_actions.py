@@ -88,6 +88,17 @@ def test_down_stops_itself_at_the_floor() -> None:
     assert mapper.setpoint(flying(height_m=0.4)).down_m_s == -V
 
 
+def test_down_stops_above_a_table_seen_by_the_rangefinder() -> None:
+    mapper = ActionMapper(SETTINGS)
+    over_table = replace(flying(height_m=1.5), ground_clearance_m=0.8)
+    mapper.apply("down", over_table)
+    assert mapper.setpoint(over_table).down_m_s == V
+    sp = mapper.setpoint(replace(flying(height_m=1.2), ground_clearance_m=0.5))
+    assert sp.is_stop and "rangefinder" in mapper.events[-1]
+    mapper.apply("down", flying(height_m=1.2))  # no rangefinder reading (stale): home height rules
+    assert mapper.setpoint(flying(height_m=1.2)).down_m_s == V
+
+
 def test_ceiling_zeroes_only_the_climb() -> None:
     mapper = ActionMapper(SETTINGS)
     mapper.apply("up", flying(height_m=SETTINGS.ceiling_m - 0.1))

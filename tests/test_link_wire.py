@@ -42,7 +42,7 @@ def test_heartbeat_identity_and_telemetry_request(tmp_path: Path) -> None:
         assert (beat.type, beat.get_srcSystem(), beat.get_srcComponent()) == (mavutil.mavlink.MAV_TYPE_GCS, 255, 190)
         asked = {int(m.param1): m.param2 for _, m in vehicle.messages("COMMAND_LONG") if m.command == 511}
         assert asked == {32: pytest.approx(1e5), 30: pytest.approx(1e5), 245: pytest.approx(1e6),
-                         33: pytest.approx(5e5)}
+                         33: pytest.approx(5e5), 132: pytest.approx(1e5)}
         # the .tlog holds both directions and reads back with pymavlink
         log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
         senders = set()
@@ -210,7 +210,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         assert first.yaw == pytest.approx(math.radians(30.0), abs=1e-6)
         assert after[-1].vx == pytest.approx(0.5 * math.cos(math.radians(30)), abs=1e-6)
         intervals = [t for t, m in vehicle.messages("COMMAND_LONG") if m.command == 511]
-        assert len(intervals) == 8 and intervals[-1] > lost_at  # asked again after the link came back
+        assert len(intervals) == 10 and intervals[-1] > lost_at  # asked again after the link came back
 
 
 def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> None:

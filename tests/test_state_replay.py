@@ -126,6 +126,25 @@ def test_px4_modes(px4: Replay) -> None:
     assert px4.final.custom_mode == 393216 and px4.final.base_mode == 17
 
 
+def test_px4_rangefinder_is_used_only_while_fresh(tlogs_dir: Path) -> None:
+    """PX4 SIH sends a downward DISTANCE_SENSOR at 0.5 Hz: 5.02 m at 28.7 s from the first record."""
+    tracker = VehicleStateTracker()
+    log = mavutil.mavlink_connection(str(tlogs_dir / PX4_LOG))
+    t0, readings = None, []
+    while (msg := log.recv_match()) is not None:
+        t0 = msg._timestamp if t0 is None else t0
+        if msg.get_srcSystem() == 255:
+            continue
+        tracker.update(msg, msg._timestamp)
+        if msg.get_type() == "DISTANCE_SENSOR":
+            fresh = tracker.snapshot(msg._timestamp + 0.5).ground_clearance_m
+            stale = tracker.snapshot(msg._timestamp + 1.5).ground_clearance_m
+            readings.append((round(msg._timestamp - t0, 1), fresh, stale))
+    assert len(readings) == 38
+    assert (28.7, 5.02, None) in readings
+    assert all(stale is None for _, _, stale in readings)
+
+
 def test_px4_heading_follows_yaw_target(px4: Replay) -> None:
     # yaw target 1.608 rad (92 deg) from 36.24 s; reached within 3 deg after 3 s
     state = px4.at[47.5]

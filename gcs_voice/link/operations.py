@@ -255,6 +255,9 @@ class FlightOperations:
                                    retries=0)
             if ack is None or not ack.accepted:
                 refused.append(str(message_id))
+        # optional: a downward rangefinder, fast enough for the floor rule (refused or absent is fine)
+        self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR),
+                                                             1e6 / self.settings.local_position_ned_hz), retries=0)
         self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),), retries=0)
         self._telemetry_requested = True
         if refused:

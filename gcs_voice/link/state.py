@@ -84,6 +84,8 @@ class VehicleState:
     home_alt_amsl_m: float | None = None
     alt_amsl_m: float | None = None
     relative_alt_m: float | None = None
+    #: downward rangefinder distance (DISTANCE_SENSOR, PITCH_270), None when absent or stale
+    ground_clearance_m: float | None = None
     last_heard_s: float | None = None
     link_ok: bool = False
     heartbeats: int = 0
@@ -139,14 +141,22 @@ class VehicleStateTracker:
     state: VehicleState = field(default_factory=VehicleState)
     acks: deque = field(default_factory=lambda: deque(maxlen=256))
     texts: deque = field(default_factory=lambda: deque(maxlen=256))
+    #: a rangefinder reading older than this is not used (PX4 sends DISTANCE_SENSOR at 0.5 Hz unless asked)
+    rangefinder_max_age_s: float = 1.0
     ignored: int = 0
     _pending: dict = field(default_factory=dict)
+    _clearance: tuple[float, float] | None = None  # (metres, time)
 
     def snapshot(self, now_s: float) -> VehicleState:
-        """The state with ``link_ok`` evaluated at ``now_s``."""
+        """The state with ``link_ok`` and the rangefinder's freshness evaluated at ``now_s``."""
         heard = self.state.last_heard_s
         ok = heard is not None and now_s - heard < self.link_lost_s
-        return self.state if ok == self.state.link_ok else replace(self.state, link_ok=ok)
+        clearance = None
+        if self._clearance is not None and now_s - self._clearance[1] <= self.rangefinder_max_age_s:
+            clearance = self._clearance[0]
+        if ok == self.state.link_ok and clearance == self.state.ground_clearance_m:
+            return self.state
+        return replace(self.state, link_ok=ok, ground_clearance_m=clearance)
 
     def update(self, msg: Any, now_s: float) -> list[CommandAck | StatusText]:
         """Take one message; return the ACKs and complete STATUSTEXTs it produced. Never raises on bad input."""
@@ -210,6 +220,14 @@ class VehicleStateTracker:
 
     def _global_position_int(self, msg: Any, now_s: float) -> None:
         self.state = replace(self.state, alt_amsl_m=msg.alt / 1000.0, relative_alt_m=msg.relative_alt / 1000.0)
+
+    def _distance_sensor(self, msg: Any, now_s: float) -> None:
+        if msg.orientation != mavlink.MAV_SENSOR_ROTATION_PITCH_270:
+            return
+        distance_cm = int(msg.current_distance)
+        if msg.min_distance <= distance_cm <= msg.max_distance and msg.max_distance > 0:
+            self._clearance = (distance_cm / 100.0, now_s)
+            self.state = replace(self.state, ground_clearance_m=distance_cm / 100.0)
 
     def _home_position(self, msg: Any, now_s: float) -> None:
         if _finite(msg.x, msg.y, msg.z):
