@@ -172,7 +172,9 @@ class Vehicle:
         self.behaviour = Behaviour.HOLD if not (self.landed and self.behaviour is Behaviour.IDLE) else Behaviour.IDLE
 
     def land(self) -> None:
+        """Brake, then descend where it stopped (never toward an older hold point)."""
         self._touchdown_s = None
+        self._hold = _Hold(point_ned_m=None, yaw_rad=self._yaw_target_rad)
         self.behaviour = Behaviour.LAND
 
     def return_to_launch(self) -> float:
@@ -315,6 +317,9 @@ class Vehicle:
         if self.landed:
             return ControlTarget(vel_ned_m_s=(0.0, 0.0, self.limits.land_speed_m_s), yaw_rad=self._hold.yaw_rad)
         if self._hold.point_ned_m is None:
+            vel_now = self.state.vel_ned_m_s
+            if math.hypot(float(vel_now[0]), float(vel_now[1])) > HOLD_CAPTURE_SPEED_M_S:
+                return ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=self._hold.yaw_rad)   # brake first
             self._hold.point_ned_m = pos
         hold_n, hold_e, _ = self._hold.point_ned_m
         vel = (POSITION_TO_VELOCITY_PER_S * (hold_n - pos[0]), POSITION_TO_VELOCITY_PER_S * (hold_e - pos[1]),

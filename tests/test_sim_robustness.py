@@ -167,3 +167,45 @@ def test_fuzz_random_and_mutated_frames_then_still_flies(gcs: LockstepGcs) -> No
     start = g.last("LOCAL_POSITION_NED")
     g.run(3.0, every=lambda: g.setpoint(M.MAV_FRAME_LOCAL_NED, VELOCITY_YAW, vy=1.0, yaw=0.0))
     assert g.last("LOCAL_POSITION_NED").y - start.y > 2.0
+
+
+def test_tcp_clients_garbage_split_frames_and_abrupt_disconnects() -> None:
+    import socket
+
+    from sim_bridge.cli import build_sim
+
+    server = build_sim("ardupilot", "open_field", tcp=["127.0.0.1:0"])
+    port = server.tcp_servers[0].port
+    gcs = M.MAVLink(None, srcSystem=255, srcComponent=190)
+    try:
+        quitter = socket.create_connection(("127.0.0.1", port))
+        quitter.sendall(b"\xfd\x09\x00")                        # half a header, then gone
+        client = socket.create_connection(("127.0.0.1", port))
+        client.settimeout(0.0)
+        server.run_for(0.1)
+        quitter.close()
+        request = gcs.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0).pack(gcs)
+        # garbage (no stray 0xFD/0xFE: like any MAVLink parser, a false start swallows what follows), then a
+        # frame split across two TCP segments
+        client.sendall(b"\x00\x11 garbage \x22" + request[:7])
+        server.run_for(0.05)
+        client.sendall(request[7:])
+        server.run_for(0.2)
+        parser = M.MAVLink(None)
+        parser.robust_parsing = True
+        data = b""
+        while True:
+            try:
+                chunk = client.recv(65536)
+            except BlockingIOError:
+                break
+            if not chunk:
+                break
+            data += chunk
+        kinds = [m.get_type() for m in parser.parse_buffer(data) or []]
+        assert "COMMAND_ACK" in kinds and "AUTOPILOT_VERSION" in kinds
+        assert server.stats.bad_frames >= 1 and server.stats.handler_errors == 0
+        assert len([link for link in server.links if not link.closed]) == 1, "the quitter's link was dropped"
+    finally:
+        client.close()
+        server.close()

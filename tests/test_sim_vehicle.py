@@ -117,3 +117,25 @@ def test_rtl_returns_home_within_the_ceiling_and_lands(room) -> None:
     events = _run(vehicle, 20.0)
     assert VehicleEvent.RTL_LANDING in events and not vehicle.armed
     assert math.hypot(*vehicle.state.pos_ned_m[:2]) < 0.3
+
+
+def test_land_descends_where_it_stopped_not_toward_an_old_hold_point(room) -> None:
+    from sim_bridge.setpoints import Setpoint
+
+    vehicle = Vehicle(Multicopter(load_room("open_field")))
+    vehicle.limits.takeoff_delay_s = 0.5
+    vehicle.arm()
+    vehicle.takeoff(1.5)
+    _run(vehicle, 5.0)                      # holding over the takeoff spot
+    vehicle.follow(Setpoint((1.0, 0.0, 0.0), (None, None, None), 0.0, None, False, received_s=vehicle.time_s))
+    _run(vehicle, 3.0)
+    vehicle.land()
+    start = vehicle.state.pos_ned_m.copy()
+    tilt_deg = 0.0
+    for _ in range(600):
+        vehicle.step(0.01)
+        if vehicle.altitude_m < 0.3:        # tilt at touchdown (braking from 1 m/s leans it more, higher up)
+            tilt_deg = max(tilt_deg, math.degrees(max(abs(vehicle.state.roll_rad), abs(vehicle.state.pitch_rad))))
+    drift_m = math.hypot(*(vehicle.state.pos_ned_m[:2] - start[:2]))
+    assert drift_m < 0.8, "brakes, then lands below (a bug flew back to the takeoff spot, 3 m away)"
+    assert tilt_deg < 5.0 and not vehicle.armed
