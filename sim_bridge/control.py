@@ -69,6 +69,9 @@ class ControlGains:
     rate_ki_yaw_per_s2: float
     mixer_arm_length_m: float
     mixer_torque_per_thrust_m: float
+    landing_near_ground_m: float
+    landing_tilt_limit_deg: float
+    landing_spool_down_per_s: float
 
 
 def load_gains(path: str | Path = DEFAULT_GAINS_PATH) -> ControlGains:
@@ -152,6 +155,7 @@ class CascadedController:
         self._target = ControlTarget()
         self._hold_pos: tuple[float, float, float] = (0.0, 0.0, 0.0)
         self._hold_yaw_rad = 0.0
+        self._lift_share = 0.0   # touching down: collective as a share of the weight, spooling down to idle
         self.reset_integrators()
 
     def reset_integrators(self) -> None:
@@ -178,6 +182,7 @@ class CascadedController:
         self._target = ControlTarget()
         self._hold_pos = (sample.north_m, sample.east_m, sample.down_m)
         self._hold_yaw_rad = sample.yaw_rad
+        self._lift_share = 0.0
         self.reset_integrators()
 
     @property
@@ -206,14 +211,31 @@ class CascadedController:
             return t.vel_ned_m_s[2] < -CLIMB_INTENT_M_S
         return self._hold_pos[2] < s.down_m - CLIMB_INTENT_M_S
 
-    def update(self, s: FdmSample, dt_s: float, on_ground: bool) -> list[float]:
-        """One control step: the four throttles (front-right, aft-left, front-left, aft-right)."""
+    def update(self, s: FdmSample, dt_s: float, on_ground: bool, touching: bool = False,
+               height_m: float = math.inf) -> list[float]:
+        """One control step: the four throttles (front-right, aft-left, front-left, aft-right).
+
+        ``on_ground``: standing (spin at idle unless asked to climb). ``touching``: some part touches the
+        ground or a top (a touchdown in progress): unless asked to climb, level the vehicle and spool the
+        collective down to idle, with the integrators cleared, so a sideways or tilted touchdown is neither
+        steered nor pushed along the ground. ``height_m``: above the floor; close to it, descending or
+        holding, the tilt is limited (``landing.tilt_limit_deg``) so the vehicle arrives nearly level.
+        """
         g = self.gains
-        if on_ground and not self.wants_climb(s):
+        if (on_ground or touching) and not self.wants_climb(s):
             self.reset_integrators()
             self._hold_yaw_rad = s.yaw_rad if self._target.yaw_rad is None else self._hold_yaw_rad
             self._hold_pos = (s.north_m, s.east_m, s.down_m)
-            return [g.limits_ground_idle_throttle] * 4
+            self._lift_share = max(0.0, self._lift_share - g.landing_spool_down_per_s * dt_s)
+            idle_share = (g.limits_ground_idle_throttle / self.hover_throttle) ** 2
+            if on_ground or self._lift_share <= idle_share:
+                return [g.limits_ground_idle_throttle] * 4
+            return self._level(s, GRAVITY_M_S2 * self._lift_share)
+        if self._lift_share < 1.0 and height_m < g.landing_near_ground_m and not self.wants_climb(s):
+            # bounced off the ground during a touchdown: keep level and keep spooling down, no steering
+            self._lift_share = max(0.0, self._lift_share - g.landing_spool_down_per_s * dt_s)
+            return self._level(s, GRAVITY_M_S2 * max(self._lift_share, MIN_LIFT_FRACTION))
+        self._lift_share = 1.0
 
         # velocity -> acceleration (NED): the target is slewed at bounded acceleration (a step becomes a
         # ramp the vehicle can follow, as PX4 does), then PI on the slewed reference plus its acceleration
@@ -230,7 +252,10 @@ class CascadedController:
         cy, sy = math.cos(s.yaw_rad), math.sin(s.yaw_rad)
         a_fwd = cy * acc[0] + sy * acc[1]
         a_right = -sy * acc[0] + cy * acc[1]
-        a_max = lift_m_s2 * math.tan(math.radians(g.limits_tilt_deg))
+        tilt_deg = g.limits_tilt_deg
+        if height_m < g.landing_near_ground_m and not self.wants_climb(s):
+            tilt_deg = min(tilt_deg, g.landing_tilt_limit_deg)
+        a_max = lift_m_s2 * math.tan(math.radians(tilt_deg))
         a_norm = math.hypot(a_fwd, a_right)
         tilt_saturated = a_norm > a_max
         if tilt_saturated:
@@ -241,6 +266,15 @@ class CascadedController:
                                        g.velocity_integral_limit_m_s2)
         pitch_t = -math.atan2(a_fwd, lift_m_s2)
         roll_t = math.atan2(a_right * math.cos(pitch_t), lift_m_s2)
+        return self._attitude(s, dt_s, roll_t, pitch_t, lift_m_s2)
+
+    def _level(self, s: FdmSample, lift_m_s2: float) -> list[float]:
+        """Hold level and the current heading with this much lift (touchdown): no steering."""
+        return self._attitude(s, 0.0, 0.0, 0.0, lift_m_s2)
+
+    def _attitude(self, s: FdmSample, dt_s: float, roll_t: float, pitch_t: float, lift_m_s2: float) -> list[float]:
+        """Roll/pitch targets and lift -> throttles (attitude P, rate P, yaw-rate PI, mixer)."""
+        g = self.gains
         tilt_cos = max(math.cos(s.roll_rad) * math.cos(s.pitch_rad), MIN_TILT_COSINE)
         thrust_n = self.mass_kg * lift_m_s2 / tilt_cos
 

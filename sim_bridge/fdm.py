@@ -38,7 +38,10 @@ HOVER_TRIM_AVERAGE_S = 1.0
 _log = logging.getLogger(__name__)
 _THROTTLE_PROPS = [f"fcs/throttle-cmd-norm[{i}]" for i in range(MOTOR_COUNT)]
 _CONTACT_PROPS = [f"external_reactions/contact_{axis}/magnitude" for axis in ("n", "e", "d")]
-_WOW_PROPS = [f"gear/unit[{i}]/WOW" for i in range(3)]
+FOOT_COUNT = 4                # gcs_quad.xml: contact units 0-3 are the feet, 4.. the frame (motor pods, top)
+FRAME_CONTACT_COUNT = 5
+_WOW_PROPS = [f"gear/unit[{i}]/WOW" for i in range(FOOT_COUNT)]
+_FRAME_WOW_PROPS = [f"contact/unit[{i}]/WOW" for i in range(FOOT_COUNT, FOOT_COUNT + FRAME_CONTACT_COUNT)]
 
 
 @dataclass
@@ -86,6 +89,7 @@ class FdmSample:
     gear_contacts: int
     lat_deg: float
     lon_deg: float
+    frame_contacts: int = 0   # frame points (not feet) touching the ground: tipped over, or landing on an arm
 
 
 def _flush_c_stdio() -> None:
@@ -244,6 +248,7 @@ class QuadFdm:
             gear_contacts=sum(1 for prop in _WOW_PROPS if fdm[prop] > 0.5),
             lat_deg=lat_deg,
             lon_deg=lon_deg,
+            frame_contacts=sum(1 for prop in _FRAME_WOW_PROPS if fdm[prop] > 0.5),
         )
 
     # ---- trim ----------------------------------------------------------------------------------

@@ -22,8 +22,13 @@ DEFAULT_HOME = (47.397742, 8.545594, 488.0)   # lat_deg, lon_deg, alt_m: PX4 SIT
 DEFAULT_PHYSICS_HZ = 300.0                     # 200-400 Hz fly alike (docs/bench/sim.md); 300 keeps >= 60x
 MIN_PHYSICS_HZ, MAX_PHYSICS_HZ = 100.0, 2000.0
 MAX_DISTURBANCE_N = 50.0
-ON_GROUND_MIN_GEAR_CONTACTS = 2                # of the three gear points
+ON_GROUND_MIN_GEAR_CONTACTS = 2                # of the four feet
 ON_GROUND_MAX_CLIMB_M_S = 0.3                  # and not moving up faster than this
+TIPPED_OVER_TILT_RAD = math.radians(60.0)      # armed, touching something and tilted past this: crashed
+NONPHYSICAL_SPEED_FACTOR = 3.0                 # armed and faster than 3x the speed limits: the model broke
+FELL_THROUGH_FLOOR_M = 0.3                     # gear this far below the floor: the model broke
+TIPPED_OVER_EVENT = "ground (tipped over, motors cut)"
+PHYSICS_FAULT_EVENT = "physics fault (vehicle reset to rest, disarmed)"
 
 
 class Multicopter:
@@ -65,6 +70,7 @@ class Multicopter:
         self._disturbance_n: tuple[float, ...] = (0.0, 0.0, 0.0)
         self._disturbance_changed = True
         self._sample = self._fdm.sample()
+        self._last_good: FdmSample = self._sample
         self._controller.hold_here(self._sample)
 
     @property
@@ -129,8 +135,11 @@ class Multicopter:
     def _physics_step(self, dt_s: float) -> None:
         s = self._sample
         on_ground = self._on_ground(s)
+        touching = s.gear_contacts > 0 or s.frame_contacts > 0 or self._supported()
+        if self._armed and touching and self._tilt_rad(s) > TIPPED_OVER_TILT_RAD:
+            self._cut_motors(TIPPED_OVER_EVENT, s)   # as ArduPilot's crash check: never thrust into the ground
         if self._armed:
-            self._fdm.set_throttles(self._controller.update(s, dt_s, on_ground))
+            self._fdm.set_throttles(self._controller.update(s, dt_s, on_ground, touching, -s.down_m))
         if self._contacts is not None:
             self._apply_contacts(s)
         elif self._disturbance_changed:
@@ -139,6 +148,53 @@ class Multicopter:
         self._fdm.run_step()
         self._steps += 1
         self._sample = self._fdm.sample()
+        if self._physical(self._sample):
+            self._last_good = self._sample
+        else:
+            self._recover()
+
+    def _supported(self) -> bool:
+        return self._contacts is not None and self._contacts.supported
+
+    @staticmethod
+    def _tilt_rad(s: FdmSample) -> float:
+        cos_tilt = math.cos(s.roll_rad) * math.cos(s.pitch_rad)
+        return math.acos(max(-1.0, min(1.0, cos_tilt)))
+
+    def _cut_motors(self, event_name: str, s: FdmSample) -> None:
+        """Disarm (the vehicle layer reads ``state.armed``) and report why as an event."""
+        self.set_armed(False)
+        self._events.append(Contact(self.t_s, event_name, (s.north_m, s.east_m, s.down_m)))
+
+    def _physical(self, s: FdmSample) -> bool:
+        """A last safety net: NaN/inf, sinking through the floor, or (armed) far past the speed limits."""
+        values = (s.north_m, s.east_m, s.down_m, s.vn_m_s, s.ve_m_s, s.vd_m_s, s.roll_rad, s.pitch_rad,
+                  s.yaw_rad, s.p_rad_s, s.q_rad_s, s.r_rad_s)
+        if not all(math.isfinite(v) for v in values) or s.down_m > FELL_THROUGH_FLOOR_M:
+            return False
+        if not self._armed:
+            return True   # a disarmed vehicle may fall fast from high up: that is physics
+        g = self._controller.gains
+        return (math.hypot(s.vn_m_s, s.ve_m_s) <= NONPHYSICAL_SPEED_FACTOR * g.limits_horizontal_speed_m_s
+                and abs(s.vd_m_s) <= NONPHYSICAL_SPEED_FACTOR * g.limits_vertical_speed_m_s)
+
+    def _recover(self) -> None:
+        """The model left physics: put the vehicle at rest, level and disarmed where it last was sane.
+
+        On the floor below that point if it was low (or below the floor), else in the air (it then falls,
+        disarmed). Any disturbance force is cleared. Reported as a ``PHYSICS_FAULT_EVENT`` contact, which the
+        MAVLink layer turns into a STATUSTEXT like any contact; the vehicle layer sees ``state.armed`` False.
+        """
+        good = self._last_good
+        down_m = good.down_m if good.down_m < -0.5 else 0.0
+        self._fdm.place((good.north_m, good.east_m, down_m), good.yaw_rad)
+        self._armed = False
+        self._pushing = False
+        self._disturbance_n = (0.0, 0.0, 0.0)   # whatever pushed it there is gone too
+        self._disturbance_changed = True
+        self._sample = self._last_good = self._fdm.sample()
+        self._controller.hold_here(self._sample)
+        self._events.append(Contact(self.t_s, PHYSICS_FAULT_EVENT, (good.north_m, good.east_m, down_m)))
 
     def _apply_contacts(self, s: FdmSample) -> None:
         center = (s.north_m, s.east_m, s.down_m - GEAR_HEIGHT_M)
@@ -158,9 +214,9 @@ class Multicopter:
         """Standing on the floor (gear), or resting on top of furniture (contact from below)."""
         if s.vd_m_s <= -ON_GROUND_MAX_CLIMB_M_S:
             return False
-        if s.gear_contacts >= ON_GROUND_MIN_GEAR_CONTACTS:
-            return True
-        return self._contacts is not None and self._contacts.supported and s.vd_m_s < ON_GROUND_MAX_CLIMB_M_S
+        if s.gear_contacts >= ON_GROUND_MIN_GEAR_CONTACTS or s.frame_contacts > 0:
+            return True   # standing, or lying on its frame (tipped over)
+        return self._supported() and s.vd_m_s < ON_GROUND_MAX_CLIMB_M_S
 
     @property
     def state(self) -> RigidBodyState:

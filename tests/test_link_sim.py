@@ -129,13 +129,10 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
         assert link.state.mode == "LAND" and not link.streaming
         touchdown = link.wait_for(lambda s: s.landed_state == "ON_GROUND" or (s.height_m or 0.0) < 0.1, 15.0)
         assert touchdown is not None, "never reached the ground after LAND"
-        if autopilot == "ardupilot":
-            # gcs-sim's PX4 personality (sim-mavlink fbf2b4b) sometimes throws the vehicle up again after
-            # touchdown in LAND and never disarms: reported to the lead; checked here for ArduCopter only.
-            track = []
-            disarmed = link.wait_for(lambda s: track.append((s.mode, s.landed_state, round(s.height_m or 0, 2))) or
-                                     s.armed is False, 20.0)
-            assert disarmed is not None, f"not disarmed 20 s after LAND; (mode, landed, height): {track[::10]}"
+        track = []
+        disarmed = link.wait_for(lambda s: track.append((s.mode, s.landed_state, round(s.height_m or 0, 2))) or
+                                 s.armed is False, 20.0)
+        assert disarmed is not None, f"not disarmed 20 s after LAND; (mode, landed, height): {track[::10]}"
     # the tlog holds our setpoints, all in the one encoding
     log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
     encodings, setpoint_t, mode_requests = set(), [], []
