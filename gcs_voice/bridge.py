@@ -7,7 +7,8 @@ Three kinds of thread meet here. The voice side (``gcs_voice.listen``) and the k
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
-- motion while disarmed, outside the velocity mode, or during take-off/landing: refused with the reason;
+- motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
+  the reason (a setpoint would cut an ArduCopter take-off short near the ground);
 - disarm while flying: refused (a misheard word must not drop the vehicle);
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
@@ -171,8 +172,10 @@ class Bridge:
             return None
         if action not in MOTION_ACTIONS:
             return self._refuse(request, "unknown action")
-        if self._busy and action != "stop":
-            return self._refuse(request, f"busy: {self._busy} in progress (only stop is taken)")
+        if self._busy:
+            # Even a stop: a velocity setpoint ends an ArduCopter take-off where it is (a hover near the
+            # ground), and a landing is the autopilot's to finish. Both end in a hold by themselves.
+            return self._refuse(request, f"busy: {self._busy} in progress; the vehicle holds when it is done")
         if not state.armed:
             return self._refuse(request, "vehicle is not armed: say 'take off' first" if action != "stop"
                                 else "vehicle is not armed: nothing to stop")
