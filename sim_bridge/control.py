@@ -72,6 +72,8 @@ class ControlGains:
     landing_near_ground_m: float
     landing_tilt_limit_deg: float
     landing_spool_down_per_s: float
+    landing_level_within_deg: float
+    landing_tilted_lift_share: float
 
 
 def load_gains(path: str | Path = DEFAULT_GAINS_PATH) -> ControlGains:
@@ -226,14 +228,15 @@ class CascadedController:
             self.reset_integrators()
             self._hold_yaw_rad = s.yaw_rad if self._target.yaw_rad is None else self._hold_yaw_rad
             self._hold_pos = (s.north_m, s.east_m, s.down_m)
-            self._lift_share = max(0.0, self._lift_share - g.landing_spool_down_per_s * dt_s)
+            level = self._spool_down(s, dt_s)
             idle_share = (g.limits_ground_idle_throttle / self.hover_throttle) ** 2
-            if on_ground or self._lift_share <= idle_share:
+            if (on_ground and level) or self._lift_share <= idle_share:   # standing level: props at idle
+                self._lift_share = 0.0
                 return [g.limits_ground_idle_throttle] * 4
             return self._level(s, GRAVITY_M_S2 * self._lift_share)
         if self._lift_share < 1.0 and height_m < g.landing_near_ground_m and not self.wants_climb(s):
             # bounced off the ground during a touchdown: keep level and keep spooling down, no steering
-            self._lift_share = max(0.0, self._lift_share - g.landing_spool_down_per_s * dt_s)
+            self._spool_down(s, dt_s)
             return self._level(s, GRAVITY_M_S2 * max(self._lift_share, MIN_LIFT_FRACTION))
         self._lift_share = 1.0
 
@@ -267,6 +270,19 @@ class CascadedController:
         pitch_t = -math.atan2(a_fwd, lift_m_s2)
         roll_t = math.atan2(a_right * math.cos(pitch_t), lift_m_s2)
         return self._attitude(s, dt_s, roll_t, pitch_t, lift_m_s2)
+
+    def _spool_down(self, s: FdmSample, dt_s: float) -> bool:
+        """Lower the touchdown collective; tilted (rocking on a foot), take back enough to level first.
+
+        Returns whether the vehicle is level.
+        """
+        g = self.gains
+        level = math.cos(s.roll_rad) * math.cos(s.pitch_rad) >= math.cos(math.radians(g.landing_level_within_deg))
+        if level:
+            self._lift_share = max(0.0, self._lift_share - g.landing_spool_down_per_s * dt_s)
+        else:
+            self._lift_share = max(self._lift_share, g.landing_tilted_lift_share)
+        return level
 
     def _level(self, s: FdmSample, lift_m_s2: float) -> list[float]:
         """Hold level and the current heading with this much lift (touchdown): no steering."""

@@ -7,6 +7,7 @@ Real JSBSim and our controller in lockstep; the assertions are on what the vehic
 from __future__ import annotations
 
 import math
+import random
 
 import numpy as np
 import pytest
@@ -121,3 +122,48 @@ def test_a_push_no_vehicle_can_fight_ends_in_the_safety_net_not_in_nan() -> None
     assert max(math.hypot(*s.vel_ned_m_s[:2]) for s in states) < 3.0 * 5.0 + 1.0
     assert PHYSICS_FAULT_EVENT in [event.obstacle_name for event in vehicle.pop_events()]
     assert not vehicle.state.armed
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("physics_hz", [200.0, 400.0])
+def test_touchdowns_come_to_rest_at_other_physics_rates(physics_hz) -> None:
+    vehicle = Multicopter(load_room("open_field"), physics_hz=physics_hz)
+    vehicle.set_armed(True)
+    vehicle.set_target(ControlTarget(pos_ned_m=(0.0, 0.0, HOVER_DOWN_M)))
+    _fly(vehicle, 4.0)
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 5.0, 2.5), yaw_rate_rad_s=1.5))
+    assert_sane_touchdown(vehicle, 6.0, 1.5)
+
+
+def test_physics_rates_whose_ground_contact_is_unstable_are_refused() -> None:
+    with pytest.raises(ValueError, match="physics_hz"):
+        Multicopter(physics_hz=100.0)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("seed", [1, 2])
+def test_random_target_sequences_never_tip_fly_away_or_break(seed) -> None:
+    """Seeded fuzz: 10 flights of 16 random targets, 0.5 s each: positions metres away (up to 2 m high or
+    underground), sideways velocities beyond the limits while descending or level, random yaw rates."""
+    rng = random.Random(seed)
+    for room in ("open_field", "living_room") * 5:
+        vehicle = Multicopter(load_room(room))
+        vehicle.set_armed(True)
+        highest_up_m = 0.0
+        for _ in range(16):
+            yaw_rate = rng.choice([None, rng.uniform(-1.6, 1.6)])
+            if rng.random() < 0.5:
+                target = ControlTarget(vel_ned_m_s=(rng.uniform(-6, 6), rng.uniform(-6, 6),
+                                                    rng.choice([2.5, rng.uniform(0.0, 3.0)])), yaw_rate_rad_s=yaw_rate)
+            else:
+                pos = (rng.uniform(-8, 8), rng.uniform(-8, 8), rng.uniform(-2.0, 1.0))
+                highest_up_m = max(highest_up_m, -pos[2])
+                target = ControlTarget(pos_ned_m=pos, yaw_rate_rad_s=yaw_rate)
+            vehicle.set_target(target)
+            for s in _fly(vehicle, 0.5):
+                assert np.all(np.isfinite(s.vel_ned_m_s)) and np.all(np.isfinite(s.pos_ned_m))
+                assert -s.pos_ned_m[2] < highest_up_m + 1.0
+                assert math.hypot(*s.vel_ned_m_s[:2]) < MAX_H_SPEED_M_S and abs(s.vel_ned_m_s[2]) < MAX_V_SPEED_M_S
+        names = [event.obstacle_name for event in vehicle.pop_events()]
+        assert PHYSICS_FAULT_EVENT not in names and TIPPED_OVER_EVENT not in names
+        assert vehicle.state.armed

@@ -1,4 +1,4 @@
-"""Benchmark the simulator's physics: step responses, hover hold, yaw turn, lockstep speed.
+"""Benchmark the simulator's physics: step responses, hover hold, yaw turn, touchdowns, lockstep speed.
 
     nice -n 10 python -m tools.bench_sim            # writes docs/bench/sim.md and docs/bench/img/sim_*.png
     python -m tools.bench_sim --no-write            # print the figures only
@@ -32,6 +32,13 @@ DISTURB_DOWN_N = 2.0
 DISTURB_EAST_N = 1.0
 SPEED_REPEATS = 5     # the machine is shared: report the best of five
 COMMAND = "nice -n 10 python -m tools.bench_sim"
+# sideways touchdowns from a 1.5 m hover: (room, mode, horizontal m or m/s, heading deg, yaw rate rad/s);
+# "vel": descend at the 2.5 m/s limit while moving sideways; "pos": a target that far away, 0.5 m underground
+TOUCHDOWNS = [(room, mode, size, heading, yaw_rate) for room in ("open_field", "living_room")
+              for mode, size, heading, yaw_rate in (("vel", 2.0, 0.0, 0.0), ("vel", 5.0, 45.0, 0.0),
+                                                    ("vel", 5.0, 90.0, 1.5), ("vel", 3.0, 200.0, -1.5),
+                                                    ("pos", 4.0, 0.0, 0.0), ("pos", 8.0, 135.0, 1.0))]
+REST_M_S = 0.05
 
 
 @dataclass
@@ -216,6 +223,77 @@ def fmt(x: float, digits: int = 2) -> str:
     return "never" if math.isinf(x) else f"{x:.{digits}f}"
 
 
+def touchdown(physics_hz: float, room: str, mode: str, size: float, heading_deg: float,
+              yaw_rate_rad_s: float) -> dict[str, float]:
+    """Hover at 1.5 m, then command a descent into the ground while moving or steering sideways (8 s)."""
+    vehicle = Multicopter(load_room(room), physics_hz=physics_hz)
+    vehicle.set_armed(True)
+    vehicle.set_target(ControlTarget(pos_ned_m=(0.0, 0.0, HOVER_DOWN_M)))
+    run(vehicle, 6.0, lambda s: 0.0)
+    vehicle.pop_events()
+    north, east = size * math.cos(math.radians(heading_deg)), size * math.sin(math.radians(heading_deg))
+    vehicle.set_target(ControlTarget(vel_ned_m_s=(north, east, 2.5), yaw_rate_rad_s=yaw_rate_rad_s)
+                       if mode == "vel" else
+                       ControlTarget(pos_ned_m=(north, east, 0.5), yaw_rate_rad_s=yaw_rate_rad_s))
+    states = []
+    for _ in range(round(8.0 / STEP_S)):
+        vehicle.step(STEP_S)
+        states.append(vehicle.state)
+    moving = [i for i, s in enumerate(states) if not (s.on_ground and np.linalg.norm(s.vel_ned_m_s) < REST_M_S)]
+    tilt = [math.degrees(math.acos(max(-1.0, min(1.0, math.cos(s.roll_rad) * math.cos(s.pitch_rad)))))
+            for s in states]
+    return {
+        "max_up_m": max(-s.pos_ned_m[2] for s in states),
+        "max_h_m_s": max(math.hypot(*s.vel_ned_m_s[:2]) for s in states),
+        "max_v_m_s": max(abs(s.vel_ned_m_s[2]) for s in states),
+        "max_tilt_deg": max(tilt), "final_tilt_deg": tilt[-1],
+        "rest_s": (moving[-1] + 1) * STEP_S if moving else 0.0,
+        "at_rest": bool(not moving or moving[-1] < len(states) - 1),
+        "finite": all(np.all(np.isfinite(s.vel_ned_m_s)) for s in states),
+        "events": ", ".join(e.obstacle_name for e in vehicle.pop_events()) or "none",
+    }
+
+
+def touchdown_sweep(rates: list[float]) -> list[str]:
+    """Every touchdown case at each physics rate: how many end at rest, level, with no event of ours."""
+    lines = ["| physics (Hz) | at rest and level (of 12) | max height (m) | max vert. (m/s) |", "|---|---|---|---|"]
+    for rate in rates:
+        runs = [touchdown(rate, *case) for case in TOUCHDOWNS]
+        good = sum(1 for m in runs if m["at_rest"] and m["finite"] and m["final_tilt_deg"] < 5.0)
+        lines.append(f"| {rate:g} | {good} | {max(m['max_up_m'] for m in runs):.2f} | "
+                     f"{max(m['max_v_m_s'] for m in runs):.2f} |")
+    return lines + ["", "Below 200 Hz the feet's damping is numerically unstable (explicit integration needs "
+                    "dt * c / m < 2: 2.9 at 100 Hz, where touchdowns flipped and threw the vehicle up at 55 m/s), "
+                    "so `Multicopter` refuses rates under 200 Hz.", ""]
+
+
+def touchdown_lines(hz: float) -> list[str]:
+    lines = [
+        "## Touchdowns while moving sideways (regression: a tilted touchdown once launched the vehicle)", "",
+        f"From a hover at {-HOVER_DOWN_M} m, either a velocity target descending at the 2.5 m/s limit while moving "
+        "sideways (`vel`, m/s), or a position target that far away and 0.5 m underground (`pos`, m), with a yaw "
+        "rate; 8 s. At rest = on the ground and slower than 0.05 m/s. The same 12 cases flown before the fix "
+        "(commit 4212341: three-point gear, no touchdown mode): 8 rolled over, then 3 went NaN, 4 sank 25-160 m "
+        "through the floor and 2 climbed to 61-68 m (vertical speeds up to 69 m/s).",
+        "", "| room | target | size | heading (deg) | yaw rate (rad/s) | max height (m) | max horiz. (m/s) | "
+        "max vert. (m/s) | max tilt (deg) | final tilt (deg) | at rest after (s) | events |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for case in TOUCHDOWNS:
+        m = touchdown(hz, *case)
+        rest = fmt(m["rest_s"]) if m["at_rest"] and m["finite"] else "**never**"
+        lines.append(f"| {case[0]} | {case[1]} | {case[2]:g} | {case[3]:g} | {case[4]:g} | {m['max_up_m']:.2f} | "
+                     f"{m['max_h_m_s']:.2f} | {m['max_v_m_s']:.2f} | {m['max_tilt_deg']:.0f} | "
+                     f"{m['final_tilt_deg']:.1f} | {rest} | {m['events']} |")
+    lines += ["", "Targets: never above the hover height + 1 m, within the speed limits (5 and 2.5 m/s) plus a "
+              "touchdown margin, at rest and level. Tests: `tests/test_sim_physics_touchdown.py`.", ""]
+    return lines
+
+
+def touchdown_section(hz: float, rates: list[float]) -> list[str]:
+    return touchdown_lines(hz) + ["The same cases at other physics rates:", ""] + touchdown_sweep(rates)
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--physics-hz", type=float, default=300.0, help="JSBSim rate for the step responses")
@@ -232,6 +310,7 @@ def main(argv: list[str] | None = None) -> int:
     wall_trace, wall = wall_contact(hz)
     hover_throttle = Multicopter(physics_hz=hz).hover_throttle
     push_height, push_east, push = disturbance(hz)
+    touchdowns = touchdown_section(hz, [float(r) for r in args.rates.split(",")])
 
     ok = lambda good: "yes" if good else "**NO**"  # noqa: E731
     lines = [
@@ -242,10 +321,19 @@ def main(argv: list[str] | None = None) -> int:
         f"hover at {-HOVER_DOWN_M} m in `open_field`, physics at {hz:g} Hz. Speed is process CPU time.", "",
         "## Model", "",
         "- Dynamics: JSBSim 6-DoF, airframe `gcs_quad` = the `F450` shipped in the jsbsim wheel (1.4 kg, "
-        "same inertia, three-point gear, four DJI E305 motors with DJI 9450 propellers read from the wheel's "
+        "same inertia, four DJI E305 motors with DJI 9450 propellers read from the wheel's "
         "`engine/` folder) re-packaged without its rate-only FCS (which needs sensor systems that print "
         "\"Failed to tie property\" pages), plus three NED external forces for contacts. Gravity, propeller "
         "thrust and reaction torque, motor spin-up, body drag and ground contact all come from JSBSim.",
+        "- Ground: four feet 0.24 m apart (F450 had three points and tipped over at 17 deg of tilt; these stand "
+        "to about 38 deg), 3000 N/m and 100 N s/m each, skid friction 0.8 static / 0.5 sliding, plus frame "
+        "contact points (motor pods, top) so a tipped vehicle lies on the floor instead of sinking through it.",
+        "- Touchdown (`control.toml` [landing]): touching the ground and not asked to climb, the controller "
+        "levels the vehicle, clears its integrators and spools the collective down to idle in 0.5 s (back up "
+        "to 0.6 g while tilted over 8 deg, to level first); below 0.3 m it limits the tilt to 10 deg. `Multicopter` cuts the motors (disarms) if it is tipped past 60 "
+        "deg on the ground, and resets the vehicle to rest, disarmed, on a non-physical state (NaN, under the "
+        "floor, climbing at 3x the vertical limit, or armed and over 3x any speed limit); both are reported as "
+        "events (STATUSTEXT).",
         f"- Hover point: found by a trim search at start (a vertical PI loop flown 30 m up for 4 s): "
         f"throttle {hover_throttle:.3f}. The mixer models thrust = k * throttle^2 with k fitted at that point; "
         "the velocity integrators absorb the rest.",
@@ -292,6 +380,7 @@ def main(argv: list[str] | None = None) -> int:
         f"reached at most {wall['max_m']:.3f} m (penetration {max(0.0, wall['max_m'] - wall['surface_m']) * 100:.1f}"
         f" cm) and rests at {wall['final_m']:.3f} m while still commanded north. Events: {wall['events']}.", "",
         "![wall contact](img/sim_wall_contact.png)", "",
+        *touchdowns,
         "## Lockstep speed (one core)", "",
         "A 120 s flight in `living_room`: take off, then legs north, east (turning), south (turning), "
         "west and down, 20 s each (best of five runs), so the vehicle spends much of it pinned against walls (the contact model "
