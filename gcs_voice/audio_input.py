@@ -11,7 +11,23 @@ from __future__ import annotations
 import time
 from collections.abc import Iterator
 
-__all__ = ["microphone_utterances"]
+__all__ = ["microphone_utterances", "check_microphone"]
+
+
+def check_microphone(device: int | str | None = None) -> str:
+    """The input device's name, or AudioError now (before any link opens) when there is none."""
+    from gcs_voice.errors import AudioError
+
+    try:
+        import sounddevice as sd
+    except (ImportError, OSError) as exc:
+        raise AudioError(f"microphone unavailable: {exc} (install libportaudio2)") from None
+    try:
+        info = sd.query_devices(device, kind="input")
+    except Exception as exc:  # sounddevice raises PortAudioError / ValueError
+        raise AudioError(f"no microphone: {str(exc).splitlines()[0]} (use --say FILE.wav to fly from "
+                         "recordings)") from None
+    return str(info.get("name", "input"))
 
 
 def microphone_utterances(push_to_talk: bool = False, device: int | str | None = None) -> Iterator[tuple[bytes, float]]:

@@ -7,7 +7,9 @@ Three kinds of thread meet here. The voice side (``gcs_voice.listen``) and the k
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
-- motion while disarmed, or during take-off/landing: refused with the reason;
+- motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
+  the reason (a setpoint would cut an ArduCopter take-off short near the ground);
+- disarm while flying: refused (a misheard word must not drop the vehicle);
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
 - whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
@@ -31,6 +33,8 @@ __all__ = ["Bridge", "Request", "status_of"]
 LOOP_PERIOD_S = 0.05
 #: how long the final stop is kept on the wire before the link closes (several 10 Hz setpoints)
 FINAL_STOP_S = 0.6
+#: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
+ON_GROUND_HEIGHT_M = 0.2
 
 
 @dataclass
@@ -58,6 +62,14 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
             "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
 
 
+def _on_ground(state: Any) -> bool:
+    """Landed by the autopilot's own word (EXTENDED_SYS_STATE), else by height above home."""
+    if state.landed_state is not None:
+        return state.landed_state == "ON_GROUND"
+    height = state.height_m
+    return height is not None and height < ON_GROUND_HEIGHT_M
+
+
 class Bridge:
     """Owns the mapper's current action and the vehicle operations; ``run()`` until ``finish()``."""
 
@@ -72,7 +84,6 @@ class Bridge:
         self._op_thread: threading.Thread | None = None
         self._link_ok: bool | None = None
         self._limit_reason = ""
-        self._mapper_events_seen = 0
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
 
@@ -131,10 +142,8 @@ class Bridge:
                 self.bus.emit("link", f"link LOST: vehicle silent for {self.link.settings.link_lost_s:g} s; "
                               "nothing is commanded until it returns, then a stop", state="lost")
             self._link_ok = state.link_ok
-        events = list(self.mapper.events)
-        for text in events[self._mapper_events_seen:] if len(events) >= self._mapper_events_seen else events:
-            self.bus.emit("warning", text, source="mapper")
-        self._mapper_events_seen = len(events)
+        while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
+            self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
         reason = self.mapper.limit_reason
         if reason != self._limit_reason:
             if reason:
@@ -155,13 +164,18 @@ class Bridge:
         if action in FLIGHT_ACTIONS:
             if self._busy:
                 return self._refuse(request, f"busy: {self._busy} in progress")
+            if action == "disarm" and not _on_ground(state):
+                # A misheard "disarm" in the air would drop the vehicle: only on the ground.
+                return self._refuse(request, "the vehicle is flying: say 'land' first")
             self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
             self._start_operation(request)
             return None
         if action not in MOTION_ACTIONS:
             return self._refuse(request, "unknown action")
-        if self._busy and action != "stop":
-            return self._refuse(request, f"busy: {self._busy} in progress (only stop is taken)")
+        if self._busy:
+            # Even a stop: a velocity setpoint ends an ArduCopter take-off where it is (a hover near the
+            # ground), and a landing is the autopilot's to finish. Both end in a hold by themselves.
+            return self._refuse(request, f"busy: {self._busy} in progress; the vehicle holds when it is done")
         if not state.armed:
             return self._refuse(request, "vehicle is not armed: say 'take off' first" if action != "stop"
                                 else "vehicle is not armed: nothing to stop")

@@ -103,8 +103,14 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
     started = time.monotonic()
     worst = 0
     flown = []
+    # Load every language's recogniser in the background while the first flies (Whisper takes seconds).
+    from concurrent.futures import ThreadPoolExecutor
+
+    loader = ThreadPoolExecutor(max_workers=1)
+    pending = {lang: loader.submit(choose_voice, lang, engine, model) for lang in langs}
+    loader.shutdown(wait=False)
     for lang in langs:
-        voice, notes = choose_voice(lang, engine, model)
+        voice, notes = pending[lang].result()
         for note in notes:
             print(f"demo: {note}")
         if voice is None:

@@ -37,6 +37,7 @@ class Track:
     vn_m_s: list[float] = field(default_factory=list)
     ve_m_s: list[float] = field(default_factory=list)
     vup_m_s: list[float] = field(default_factory=list)
+    boot_s: list[float] = field(default_factory=list)  # the vehicle's own clock (time_boot_ms), simulated time
 
 
 @dataclass(frozen=True)
@@ -90,6 +91,10 @@ class Flight:
             return None
         tr = self.track
         return tr.north_m[i], tr.east_m[i], tr.alt_m[i]
+
+    def vehicle_time_at(self, t_s: float) -> float | None:
+        """The vehicle's clock (s since boot) at UNIX time ``t_s``: simulated time for a simulator."""
+        return _value_at(self.track.t_s, self.track.boot_s, t_s)
 
     def segments(self) -> list[tuple[float, float, Setpoint]]:
         """Runs of identical setpoints: (start, end, first setpoint of the run)."""
@@ -159,6 +164,7 @@ def read_flight(path: str | Path, gcs_system_id: int = GCS_SYSTEM_ID) -> Flight:
                 track.vn_m_s.append(float(msg.vx))
                 track.ve_m_s.append(float(msg.vy))
                 track.vup_m_s.append(-float(msg.vz))
+                track.boot_s.append(float(msg.time_boot_ms) / 1000.0)
             elif kind == "ATTITUDE":
                 heading_t.append(t)
                 heading.append(math.degrees(float(msg.yaw)) % 360.0)

@@ -28,7 +28,7 @@ def _read_keys(bridge: Bridge) -> None:
     fd = sys.stdin.fileno()
     saved = termios.tcgetattr(fd)
     try:
-        tty.setcbreak(fd)
+        tty.setcbreak(fd, termios.TCSANOW)  # TCSAFLUSH (the default) would drop keys already typed
         while not bridge.finished:
             key = sys.stdin.read(1)
             if not key:

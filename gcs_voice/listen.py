@@ -120,10 +120,10 @@ def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptSt
                             f"the script does it instead", source="script")
             request = bridge.submit(Request(step.fallback_action, "script"))
             request.done.wait(10.0)
+        if request is not None and request.action in ("take_off", "land"):
+            _wait_operation(bridge)  # then hold: after_s counts from the vehicle being up (or landing)
         if _sleep_unless_finished(bridge, step.after_s):
             return
-        if request is not None and request.action in ("take_off", "land"):
-            _wait_operation(bridge)
     bridge.bus.emit("session", "script done: holding and ending", phase="script-done")
     bridge.finish(0)
 

@@ -120,6 +120,23 @@ def commands_from_session_log(path: str | Path) -> list[CommandMark]:
     return marks
 
 
+def rejections_from_session_log(path: str | Path) -> list[tuple[float, str]]:
+    """(time, what was heard) of each utterance the matcher rejected (no action)."""
+    out: list[tuple[float, str]] = []
+    try:
+        lines = Path(path).read_text(encoding="utf-8").splitlines()
+    except (OSError, UnicodeDecodeError):
+        return out
+    for line in lines:
+        try:
+            event = json.loads(line)
+        except json.JSONDecodeError:
+            continue
+        if isinstance(event, dict) and event.get("kind") == "rejected":
+            out.append((float(event["t"]), str(event.get("text") or "")))
+    return out
+
+
 def link_losses_from_session_log(path: str | Path) -> list[tuple[float, float | None]]:
     """(lost, back) UNIX times of each link loss in a session log; back is None if it never returned."""
     spans: list[tuple[float, float | None]] = []
@@ -246,6 +263,13 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
         for ax in (alt, hdg):
             ax.axvspan(lost - t0, (back or t_end) - t0, color="red", alpha=0.12,
                        label="link lost" if i == 0 and ax is alt else None)
+        alt.legend(loc="lower right", fontsize=8)
+    rejected = rejections_from_session_log(session_log) if session_log else []
+    for i, (t, text) in enumerate(rejected):
+        alt.plot(t - t0, 0.0, "x", color="dimgray", ms=8, label="rejected (no action)" if i == 0 else None)
+        alt.annotate(f'"{text}"' if text else "(nothing heard)", (t - t0, 0.0), textcoords="offset points",
+                     xytext=(3, 6), fontsize=7, color="dimgray", rotation=45)
+    if rejected:
         alt.legend(loc="lower right", fontsize=8)
     source = "session log" if session_log else "setpoints in the tlog"
     fig.suptitle(title or f"{Path(tlog).name} (commands from the {source})", fontsize=11)

@@ -38,6 +38,8 @@ class SessionConfig:
     push_to_talk: bool = False
     headless: bool = True
     as_json: bool = False
+    #: headless without the console printer (benchmarks); the session log is still written
+    quiet: bool = False
     log_dir: Path = Path(".")
     log_name: str | None = None
     wait_vehicle_s: float = 30.0
@@ -92,6 +94,10 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     steps = _script(config)
     for step in steps:
         read_utterance(step.path)  # a missing or unusable WAV fails here, before any flight
+    if not steps:
+        from gcs_voice.audio_input import check_microphone
+
+        check_microphone()
     tlog, jsonl = session_paths(config.log_dir, config.log_name)
 
     bus = EventBus()
@@ -100,7 +106,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     for subscriber in config.subscribers:
         bus.subscribe(subscriber)
     view = None
-    if config.headless:
+    if config.headless and not config.quiet:
         from gcs_voice.headless import HeadlessPrinter
 
         bus.subscribe(HeadlessPrinter(as_json=config.as_json))

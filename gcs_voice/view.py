@@ -89,9 +89,10 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
         voice.add_row("heard", Text(f"\"{heard.get('text', '')}\"  ({heard.get('engine', '?')}, "
                                     f"{heard.get('lang') or '?'})", style="bold"))
     if command:
-        voice.add_row("did", Text(f"{command.get('phrase') or command.get('origin', '')!s} -> "
-                                  f"{command.get('action')}  score {_fmt(command.get('score'), '', 2)}",
-                                  style="bold cyan"))
+        said = f"{command['phrase']} -> " if command.get("phrase") else ""
+        how = (f"  score {command['score']:.2f}" if isinstance(command.get("score"), (int, float))
+               else f"  ({command.get('origin', '?')})")
+        voice.add_row("did", Text(f"{said}{command.get('action')}{how}", style="bold cyan"))
     if not heard and not command:
         voice.add_row("", Text("say a command" + (f" ({listening})" if listening else "")))
     elif listening:

@@ -36,7 +36,8 @@ def _wait(predicate, timeout_s: float) -> bool:
 
 
 def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
-    """Motion before take-off refused; link lost: refused, silent, then a stop first; voice crash: stop, exit 1."""
+    """Motion before take-off and disarm in the air refused; link lost: refused, silent, then a stop first;
+    voice crash: stop, exit 1."""
     require_parts("sim_bridge.cli")
     settings = load_settings()
     bus = EventBus()
@@ -57,6 +58,7 @@ def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
                 early.done.wait(5)
                 bridge.submit(Request("take_off", "key"))
                 assert bridge.flying_ready.wait(60)
+                bridge.submit(Request("disarm", "key")).done.wait(5)  # in the air: must be refused
                 bridge.submit(Request("go_forward", "key")).done.wait(5)
                 time.sleep(1.0)
                 marks["pause"] = time.time()
@@ -90,6 +92,8 @@ def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
     refused = [e for e in events if e["kind"] == "refused"]
     assert refused[0]["action"] == "go_forward" and "not armed" in refused[0]["reason"]
     assert any(e["action"] == "go_back" and "link lost" in e["reason"] for e in refused)
+    assert any(e["action"] == "disarm" and "flying" in e["reason"] for e in refused)
+    assert not any(e["kind"] == "flight" and e.get("what") == "disarm" for e in events)
     assert not any(e["kind"] == "command" and e.get("action") == "go_back" for e in events)
     states = [e["state"] for e in events if e["kind"] == "link"]
     assert states[:1] == ["connected"] and "lost" in states and states[-1] == "restored"

@@ -64,11 +64,11 @@ def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Pa
     forward2 = leg2[0] * math.cos(h2) + leg2[1] * math.sin(h2)
     sideways2 = -leg2[0] * math.sin(h2) + leg2[1] * math.cos(h2)
     assert forward2 > 0.5 and abs(sideways2) < 0.3
-    # Distances match the commanded speed and how long each action lasted (speed-up x wall time), less
-    # the ~0.5 s the vehicle takes to reach the speed: the right order of magnitude, not a coincidence.
+    # Distances match the commanded speed and how long each action lasted on the vehicle's own (simulated)
+    # clock, less the ~0.5 s the vehicle takes to reach the speed.
     speed_m_s = 0.5  # horizontal_speed_m_s in gcs_voice/data/settings.toml
     for travelled, start, end in ((forward1, t_fwd1, t_stop), (forward2, t_fwd2, t_down)):
-        expected = speed_m_s * SPEEDUP * (end - start)
+        expected = speed_m_s * (flight.vehicle_time_at(end) - flight.vehicle_time_at(start))
         assert 0.75 * expected < travelled < 1.1 * expected, (travelled, expected)
 
     # down stops by itself 0.5 m above the ground; the session ends with the vehicle stopped.

@@ -63,7 +63,10 @@ def test_exact_phrases_match_in_every_matcher(name: str, text: str, action: str,
 
 def test_levenshtein_tolerates_small_misrecognitions() -> None:
     m = get_matcher("levenshtein")
-    assert m.decide(heard("to the left"), [EN]).action == "go_left"  # the paper's example
+    # the paper's example: nearest is "go to the left" (0.21), but "rotate left" (0.36) is within the
+    # tuned margin, so the default rejects it as ambiguous; a looser margin acts as the paper did
+    assert "ambiguous" in m.decide(heard("to the left"), [EN]).reason
+    assert get_matcher("levenshtein", min_margin=0.1).decide(heard("to the left"), [EN]).action == "go_left"
     assert m.decide(heard("go rigt"), [EN]).action == "go_right"
     assert m.decide(heard("turn rigth"), [EN]).action == "turn_right"
     assert m.decide(heard("gira a la isquierda"), [ES]).action == "turn_left"

@@ -12,7 +12,7 @@ import numpy as np
 from bench_accuracy import (
     BEGIN, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, load_cache, recognition, score,
 )
-from gcs_voice.dictionary import MOTION_ACTIONS, load_language
+from gcs_voice.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
 from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
 
 LANGS = ("en", "es")
@@ -43,9 +43,14 @@ def confusion_png(path: Path, panels: list[tuple[str, list[Item], dict[str, str]
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    labels = list(MOTION_ACTIONS) + ["none"]
-    fig, axes = plt.subplots(1, len(panels), figsize=(4.6 * len(panels), 4.6), squeeze=False)
-    for ax, (title, items, decided) in zip(axes[0], panels):
+    seen = {decided[it.key] for _, items, decided in panels for it in items if it.key in decided}
+    labels = list(MOTION_ACTIONS) + [a for a in FLIGHT_ACTIONS if a in seen] + ["none"]
+    ncols = min(4, len(panels))
+    nrows = -(-len(panels) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(4.6 * ncols, 4.6 * nrows), squeeze=False)
+    for ax in axes.flat[len(panels):]:
+        ax.axis("off")
+    for ax, (title, items, decided) in zip(axes.flat, panels):
         m = np.zeros((len(labels), len(labels)), dtype=int)
         for it in items:
             if it.key in decided:

@@ -36,15 +36,18 @@ from gcs_voice.link.setpoints import body_to_ned  # noqa: E402
 from gcs_voice.listen import ScriptStep  # noqa: E402
 from gcs_voice.session_log import read_session_log  # noqa: E402
 
-#: (action, phrase): alternating motions and stops so every command changes the velocity it asks for,
-#: back-and-forth so the flight stays near home.
+#: (action, phrase, two espeak-ng voice:wpm takes): alternating motions and stops so every command asks
+#: for a change, back-and-forth so the flight stays near home. Phrases and voices are ones the bundled
+#: PocketSphinx model hears right from espeak-ng (as for the demo), so that most utterances are timed.
 SEQUENCE = [
-    ("go_forward", "go forward"), ("stop", "stop"), ("go_back", "go back"), ("stop", "halt"),
-    ("go_right", "go right"), ("stop", "stop"), ("go_left", "go left"), ("stop", "hold"),
-    ("up", "go up"), ("stop", "stop"), ("down", "go down"), ("stop", "stop"),
-    ("turn_right", "turn right"), ("turn_left", "turn left"),
+    ("go_forward", "go forward", ("en-us+f2:140", "en-us+f4:150")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
+    ("go_back", "go backward", ("en-us+f2:140", "en-us:140")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
+    ("go_right", "go right", ("en-us+f2:140", "en-us:140")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
+    ("go_left", "go left", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
+    ("up", "climb", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
+    ("down", "move down", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
+    ("turn_right", "turn right", ("en-us:140", "en-us+f2:140")), ("turn_left", "turn left", ("en-us:140", "en-us+f2:140")),
 ]
-VOICES = (("en-us", 140), ("en-gb", 160))
 RESPONSE_M_S = 0.1   # (c) velocity changed this much toward the new target
 RESPONSE_DEG = 5.0   # (c) for turns: heading moved this much toward the new target
 GAP_S = 2.5
@@ -54,10 +57,11 @@ def synth_corpus(out_dir: Path) -> list[tuple[Path, str]]:
     from make_demo_audio import synthesize
 
     items = []
-    for voice, wpm in VOICES:
-        for i, (action, phrase) in enumerate(SEQUENCE):
-            path = out_dir / f"{voice}_{i:02d}_{action}.wav"
-            path.write_bytes(synthesize(phrase, voice, wpm))
+    for take in range(2):
+        for i, (action, phrase, voices) in enumerate(SEQUENCE):
+            voice, wpm = voices[take].split(":")
+            path = out_dir / f"take{take}_{i:02d}_{action}.wav"
+            path.write_bytes(synthesize(phrase, voice, int(wpm)))
             items.append((path, action))
     return items
 
@@ -71,7 +75,7 @@ def corpus_from_dir(corpus: Path) -> list[tuple[Path, str]]:
         by_class.setdefault(r["class"], []).append(corpus / r["path"])
     items = []
     for take in range(2):
-        for action, _phrase in SEQUENCE:
+        for action, _phrase, _voices in SEQUENCE:
             paths = by_class.get(action, [])
             if len(paths) > take:
                 items.append((paths[take], action))
@@ -150,7 +154,8 @@ def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], wo
     script = [ScriptStep(p, GAP_S) for p, _ in items]
     with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}.log") as sim:
         result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
-                                           headless=True, log_dir=work, log_name=f"bench-{engine}"), voice=voice)
+                                           headless=True, quiet=True, log_dir=work,
+                                           log_name=f"bench-{engine}"), voice=voice)
     heard = [e for e in result.events if e["kind"] == "heard"]
     return measure(result.jsonl, result.tlog, {p.name: a for p, a in items}), len(heard)
 
@@ -168,8 +173,10 @@ def main(argv: list[str] | None = None) -> int:
     work.mkdir(parents=True, exist_ok=True)
     items = corpus_from_dir(args.corpus) if args.corpus else synth_corpus(work)
     corpus_note = (f"`{args.corpus}` (clean English takes)" if args.corpus else
-                   f"espeak-ng, {len(VOICES)} voices x {len(SEQUENCE)} phrases ({len(items)} utterances)")
+                   f"espeak-ng, 2 takes x {len(SEQUENCE)} phrases ({len(items)} utterances, voices and phrases "
+                   "in tools/bench_latency.py SEQUENCE)")
     rows = []
+    best: tuple[float, str, str] | None = None  # (b) p95, engine, load
     for engine in [e.strip() for e in args.engines.split(",") if e.strip()]:
         model = args.whisper_model if engine == "whisper" else None
         try:
@@ -177,16 +184,19 @@ def main(argv: list[str] | None = None) -> int:
             timed, total = fly_engine(engine, model, items, work)
         except GcsVoiceError as exc:
             print(f"{engine}: skipped ({exc})")
-            rows.append(f"| {engine} | skipped: {exc} | | | | | | | |")
+            rows.append(f"| {engine} | skipped: {exc} | | | | | | | | | |")
             continue
         a = [r["a_ms"] for r in timed]
         b = [r["b_ms"] for r in timed if r["b_ms"] is not None]
         c = [r["c_ms"] for r in timed if r["c_ms"] is not None]
+        load = _load()
         line = (f"| {engine} | {len(timed)}/{len(items)} | {percentile(a, .5):.0f} | {percentile(a, .95):.0f} | "
-                f"{percentile(b, .5):.0f} | {percentile(b, .95):.0f} | {len(c)} | {percentile(c, .5):.0f} | "
-                f"{percentile(c, .95):.0f} |")
+                f"{percentile(b, .5):.0f} | {percentile(b, .95):.0f} | {percentile([y - x for x, y in zip(a, b)], .95):.1f} | "
+                f"{len(c)} | {percentile(c, .5):.0f} | {percentile(c, .95):.0f} | {load} |")
         rows.append(line)
         print(line, f"({time.monotonic() - started:.0f} s)")
+        if b and (best is None or percentile(b, .95) < best[0]):
+            best = (percentile(b, .95), engine, load)
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
@@ -199,13 +209,23 @@ def main(argv: list[str] | None = None) -> int:
         "(a) decided: recognition + matching; (b) first SET_POSITION_TARGET_LOCAL_NED carrying the new action on",
         f"the wire (tlog); (c) telemetry shows the vehicle responding: velocity changed >= {RESPONSE_M_S:g} m/s toward",
         f"the new target, or heading turned >= {RESPONSE_DEG:g} deg (n = commands that asked for a change).",
-        "Only utterances decided as the intended action are timed (timed/total). Milliseconds.",
+        "Only utterances decided as the intended action are timed (timed/total). Milliseconds. (b)-(a): time",
+        "from the decision to the setpoint on the wire. load: 1-minute load average of the machine after the run.",
         "",
-        "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (c) n | (c) p50 | (c) p95 |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (b)-(a) p95 | (c) n | (c) p50 | (c) p95 | load |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
         "",
         f"Machine: {_machine()}.",
+        "",
+        _verdict(best),
+        "",
+        "Where the time goes: (b)-(a) is the bridge itself (request queue, action mapper, one UDP send), a few",
+        "milliseconds; the rest of (b) is the recogniser after the end of the audio. PocketSphinx here decodes",
+        "each utterance whole at its end (gcs_voice/asr/sphinx_engine.py: streamed decoding lost words), and",
+        "Whisper transcribes after the end by design, so both scale with CPU load on a shared machine. (c) adds",
+        "the vehicle: the simulator's velocity loop is jerk-limited like ArduCopter's (see ../shared/tlogs), and",
+        "telemetry arrives at 10 Hz. The paper's pipeline made a cloud round trip at this point.",
         "",
     ])
     print(report)
@@ -213,6 +233,26 @@ def main(argv: list[str] | None = None) -> int:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(report, encoding="utf-8")
     return 0
+
+
+def _verdict(best: tuple[float, str, str] | None) -> str:
+    target = 300.0
+    if best is None:
+        return f"Target (b) p95 <= {target:.0f} ms: no engine timed."
+    p95, engine, load = best
+    met = "met" if p95 <= target else "NOT met"
+    return (f"Target (b) p95 <= {target:.0f} ms with the fastest engine: {met} ({engine}, p95 {p95:.0f} ms, "
+            f"machine load {load} on 2 CPUs).")
+
+
+def _load() -> str:
+    """1-minute load average at the end of an engine's run (the machine is shared: say how busy it was)."""
+    import os
+
+    try:
+        return f"{os.getloadavg()[0]:.1f}"
+    except OSError:
+        return "?"
 
 
 def _machine() -> str:

@@ -22,7 +22,7 @@ MATCHERS: dict[str, str] = {
 }
 
 #: The matcher used when none is named (chosen by tools/bench_accuracy.py, see docs/bench/accuracy.md).
-DEFAULT_MATCHER = "levenshtein"
+DEFAULT_MATCHER = "phonetic"
 
 
 class UnknownMatcherError(GcsVoiceError):
