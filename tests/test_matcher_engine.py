@@ -44,11 +44,19 @@ def heard() -> dict[str, object]:
 
 
 @pytest.mark.parametrize("name", list(MATCHERS))
-@pytest.mark.parametrize(("text", "action"), [("go right", "go_right"), ("turn right", "turn_right"),
-                                              ("move forward", "go_forward")])
+@pytest.mark.parametrize(("text", "action"), [("turn right", "turn_right"), ("move forward", "go_forward")])
 def test_spoken_command_is_decided(heard, name: str, text: str, action: str) -> None:
     d = get_matcher(name).decide(heard[text], [EN])
     assert d.action == action, f"{text!r} heard as {heard[text].text!r}: {d.reason}"
+
+
+@pytest.mark.parametrize("name", list(MATCHERS))
+def test_unsure_command_is_right_or_nothing(heard, name: str) -> None:
+    # Sphinx hears "go right" with a low posterior: the tuned min_confidence may reject it, but it
+    # must never become another class.
+    d = get_matcher(name).decide(heard["go right"], [EN])
+    assert d.action in (None, "go_right"), d
+    assert get_matcher(name, min_confidence=0).decide(heard["go right"], [EN]).action == "go_right"
 
 
 @pytest.mark.parametrize("name", list(MATCHERS))

@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 sys.path.insert(0, str(REPO / "tools"))
 
 from gcs_voice.asr.base import Hypothesis, Recognition  # noqa: E402
-from gcs_voice.dictionary import MOTION_ACTIONS, Dictionary, load_language  # noqa: E402
+from gcs_voice.dictionary import Dictionary  # noqa: E402
 from gcs_voice.matcher import MATCHERS, get_matcher  # noqa: E402
 
 import bench_accuracy_engines as bench_engines  # noqa: E402
