@@ -44,17 +44,37 @@ def _library() -> ctypes.CDLL | None:
     if _lib is not None or _lib_failed:
         return _lib
     try:
-        lib = ctypes.cdll.LoadLibrary(ctypes.util.find_library("espeak-ng") or "libespeak-ng.so.1")
+        lib, data_path = _load_espeak()
         lib.espeak_Initialize.argtypes = [ctypes.c_int, ctypes.c_int, ctypes.c_char_p, ctypes.c_int]
         lib.espeak_SetVoiceByName.argtypes = [ctypes.c_char_p]
         lib.espeak_TextToPhonemes.restype = ctypes.c_char_p
         lib.espeak_TextToPhonemes.argtypes = [ctypes.POINTER(ctypes.c_char_p), ctypes.c_int, ctypes.c_int]
-        if lib.espeak_Initialize(_AUDIO_OUTPUT_SYNCHRONOUS, 0, None, 0) <= 0:
+        if lib.espeak_Initialize(_AUDIO_OUTPUT_SYNCHRONOUS, 0, data_path, 0) <= 0:
             raise OSError("espeak_Initialize failed")
         _lib = lib
     except (OSError, AttributeError):
         _lib_failed = True
     return _lib
+
+
+def _load_espeak() -> tuple[ctypes.CDLL, bytes | None]:
+    """The system's libespeak-ng (Debian's espeak-ng), else the copy in the ``espeakng-loader`` wheel.
+
+    The wheel is a dependency so that ``pip install`` alone is enough for the phonetic matcher;
+    the system library wins when present because it is the one the tests' speech was made with.
+    """
+    name = ctypes.util.find_library("espeak-ng")
+    if name:
+        try:
+            return ctypes.cdll.LoadLibrary(name), None
+        except OSError:
+            pass
+    try:
+        import espeakng_loader
+    except ImportError:
+        return ctypes.cdll.LoadLibrary("libespeak-ng.so.1"), None
+    return (ctypes.cdll.LoadLibrary(espeakng_loader.get_library_path()),
+            espeakng_loader.get_data_path().encode())
 
 
 @lru_cache(maxsize=8192)
