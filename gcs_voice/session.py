@@ -61,13 +61,13 @@ def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: s
                dictionary_files: Sequence[str | Path] = ()) -> tuple[Any, Any, list, str | None]:
     """(recognizer, matcher, dictionaries, stream language) for a language choice; errors are one line."""
     from gcs_voice.asr.registry import default_engine, load_recognizer
-    from gcs_voice.dictionary import load_dictionary, load_language
+    from gcs_voice.dictionary import AUTO_LANGUAGES, load_dictionary, load_language
     from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
 
     if dictionary_files:
         dictionaries = [load_dictionary(p) for p in dictionary_files]
     else:
-        dictionaries = [load_language(code) for code in (("en", "es") if lang == "auto" else (lang,))]
+        dictionaries = [load_language(code) for code in (AUTO_LANGUAGES if lang == "auto" else (lang,))]
     stream_lang = None if lang == "auto" else lang
     engine_name = engine or default_engine(lang)
     recognizer = load_recognizer(engine_name, dictionaries, model=model)

@@ -57,12 +57,12 @@ def _engine_for(args: argparse.Namespace) -> str:
 
 
 def _dictionaries(args: argparse.Namespace):
-    from gcs_voice.dictionary import available_languages, load_dictionary, load_language
+    from gcs_voice.dictionary import AUTO_LANGUAGES, load_dictionary, load_language
 
     if args.dictionary:
         return [load_dictionary(p) for p in args.dictionary]
     if args.lang == "auto":
-        return [load_language(code) for code in available_languages()]
+        return [load_language(code) for code in AUTO_LANGUAGES]
     return [load_language(args.lang)]
 
 
