@@ -47,6 +47,8 @@ class SessionConfig:
     script: Sequence[ScriptStep] | None = None
     #: extra bus subscribers (the demo's summary)
     subscribers: Sequence[Callable[[Any], None]] = ()
+    #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
+    setting_overrides: dict[str, float | None] = field(default_factory=dict)
 
 
 @dataclass
@@ -88,7 +90,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     from gcs_voice.link import VehicleLink
     from gcs_voice.settings import load_settings
 
-    settings = load_settings(config.settings_path)
+    settings = load_settings(config.settings_path, **config.setting_overrides)
     recognizer, matcher, dictionaries, stream_lang = voice or load_voice(
         config.lang, config.engine, config.model, config.matcher, config.dictionaries)
     steps = _script(config)

@@ -82,10 +82,10 @@ def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Pa
 
 def test_px4_personality_and_fence(tmp_path: Path) -> None:
     config = tmp_path / "settings.toml"
-    config.write_text("[safety]\nfence_radius_m = 2.0\n")
+    config.write_text("[safety]\nfence_radius_m = 5.0\n")  # the --fence flag below wins over the file
     with BundledSim(autopilot="px4", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         result = run_fly(sim.connection, [demo_wav("go_forward")], tmp_path, hold_s=6.0,
-                         extra=["--config", str(config)])
+                         extra=["--config", str(config), "--fence", "2"])
     assert result.returncode == 0, result.stderr + result.stdout[-2000:]
     flight = result.flight()
     assert flight.autopilot == 12  # MAV_AUTOPILOT_PX4

@@ -13,6 +13,8 @@ DEFAULT_UDP_PORT = 14550
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from gcs_voice.link.options import add_setting_arguments
+
     link = parser.add_argument_group("vehicle link")
     where = link.add_mutually_exclusive_group()
     where.add_argument("--udp", type=int, metavar="PORT",
@@ -45,6 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="arm and take off to M metres as soon as the vehicle reports it can")
     flight.add_argument("--config", type=Path, metavar="FILE",
                         help="settings TOML overriding the defaults (speeds, floor, fence, ceiling, link timing)")
+    add_setting_arguments(flight)
     out = parser.add_argument_group("output")
     out.add_argument("--headless", action="store_true", help="one line per event instead of the live view")
     out.add_argument("--json", action="store_true", help="with --headless: each line is the JSON event record")
@@ -54,6 +57,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from gcs_voice.link.options import setting_overrides
     from gcs_voice.session import SessionConfig, run_session
 
     if args.json and not args.headless:
@@ -64,6 +68,7 @@ def run(args: argparse.Namespace) -> int:
         dictionaries=args.dictionary or [], settings_path=args.config, say=args.say or [], gap_s=args.gap,
         hold_s=args.hold, takeoff_m=args.takeoff, push_to_talk=args.push_to_talk, headless=args.headless,
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
+        setting_overrides=setting_overrides(args),
     )
     return run_session(config).exit_code
 

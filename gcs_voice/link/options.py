@@ -11,7 +11,8 @@ import argparse
 from gcs_voice.link.connection import parse_connection, udp_listen
 from gcs_voice.settings import Settings, load_settings
 
-__all__ = ["add_link_arguments", "connection_from_args", "settings_from_args", "DEFAULT_UDP_PORT"]
+__all__ = ["add_link_arguments", "add_setting_arguments", "setting_overrides", "connection_from_args",
+           "settings_from_args", "DEFAULT_UDP_PORT"]
 
 DEFAULT_UDP_PORT = 14550
 #: flag -> (setting, help)
@@ -35,8 +36,19 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
                             "tcpin:HOST:PORT, or a serial device[,baud] such as /dev/ttyUSB0,57600")
     group.add_argument("--config", metavar="FILE", help="TOML settings file over the packaged defaults")
     group.add_argument("--tlog", metavar="FILE", help="record every packet sent and received to this .tlog")
+    add_setting_arguments(group)
+
+
+def add_setting_arguments(group: argparse._ActionsContainer) -> None:
+    """One flag per flight setting (``--speed``, ``--floor``...), applied over ``--config`` and the defaults."""
     for flag, (_setting, text) in _SETTING_FLAGS.items():
         group.add_argument(flag, type=float, metavar="N", help=text)
+
+
+def setting_overrides(args: argparse.Namespace) -> dict[str, float | None]:
+    """Settings named by the single-setting flags (None where the flag was not given)."""
+    return {setting: getattr(args, flag.lstrip("-").replace("-", "_"), None)
+            for flag, (setting, _text) in _SETTING_FLAGS.items()}
 
 
 def connection_from_args(args: argparse.Namespace) -> str:
@@ -48,7 +60,5 @@ def connection_from_args(args: argparse.Namespace) -> str:
 
 
 def settings_from_args(args: argparse.Namespace) -> Settings:
-    overrides = {setting: getattr(args, flag.lstrip("-").replace("-", "_"), None)
-                 for flag, (setting, _text) in _SETTING_FLAGS.items()}
-    return load_settings(getattr(args, "config", None), **overrides)
+    return load_settings(getattr(args, "config", None), **setting_overrides(args))
 
