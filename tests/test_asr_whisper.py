@@ -66,3 +66,54 @@ def test_missing_model_is_a_model_error(tmp_path):
     (tmp_path / "empty").mkdir()
     with pytest.raises(ModelError, match="not a faster-whisper model"):
         load_recognizer("whisper", [EN], model=str(tmp_path / "empty"))
+
+
+# -- mode "score": every dictionary phrase teacher-forced, free decoding as rejection evidence ---------
+@pytest.fixture(scope="module")
+def whisper_score(whisper_model_dir):
+    return load_recognizer("whisper", [EN, ES], model=str(whisper_model_dir), mode="score")
+
+
+def _decide(recognizer, pcm, lang):
+    from gcs_voice.matcher import get_matcher
+
+    result = _recognise(recognizer, pcm, lang)
+    return result, get_matcher("phonetic").decide(result, [EN if lang == "en" else ES])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("text", "voice", "lang", "action"), [
+    ("turn left", "en-us", "en", "turn_left"),
+    ("go back", "en-us", "en", "go_back"),
+    ("baja", "es", "es", "down"),
+])
+def test_score_mode_classifies_commands(whisper_score, tmp_path, text, voice, lang, action):
+    result, decision = _decide(whisper_score, pcm_of(text, tmp_path, voice), lang)
+    assert result.engine == "whisper-score"
+    assert {h.text for h in result.hypotheses} <= {p.text for p in (EN if lang == "en" else ES).phrases}
+    scores = [h.score for h in result.hypotheses]
+    assert scores == sorted(scores, reverse=True)
+    for key in ("free_logprob", "phrase_logprob", "free_margin", "no_speech_prob"):
+        assert key in result.extra
+    assert decision.action == action, decision
+
+
+@pytest.mark.slow
+def test_score_mode_rejects_out_of_domain_speech(whisper_score, tmp_path):
+    result, decision = _decide(whisper_score, pcm_of("the weather is nice today", tmp_path), "en")
+    assert result.hypotheses, "a phrase is always ranked first; the evidence must reject it"
+    assert decision.action is None
+    assert "free_margin" in decision.reason
+
+
+@pytest.mark.slow
+def test_score_mode_rejects_silence(whisper_score):
+    result, decision = _decide(whisper_score, bytes(16000 * 2), "en")
+    assert decision.action is None, decision
+
+
+def test_score_mode_is_whisper_only():
+    from gcs_voice.errors import GcsVoiceError
+
+    with pytest.raises(GcsVoiceError, match="score"):
+        load_recognizer("sphinx", [EN], mode="score")

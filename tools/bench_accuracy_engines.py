@@ -18,6 +18,7 @@ ENGINES: dict[str, dict[str, str | None]] = {
     "sphinx-free": {"engine": "sphinx", "model": None, "mode": "free"},
     "whisper": {"engine": "whisper", "model": str(WHISPER_MODEL), "mode": "grammar"},
     "whisper-free": {"engine": "whisper", "model": str(WHISPER_MODEL), "mode": "free"},
+    "whisper-score": {"engine": "whisper", "model": str(WHISPER_MODEL), "mode": "score"},
     "vosk": {"engine": "vosk", "model": None, "mode": "grammar"},
 }
 

@@ -26,7 +26,8 @@ ENGINES: dict[str, str] = {
 #: The Python package each engine needs.
 ENGINE_PACKAGES: dict[str, str] = {"vosk": "vosk", "whisper": "faster_whisper", "sphinx": "pocketsphinx"}
 #: "grammar": decode only dictionary words (plus an unknown/garbage path); "free": open vocabulary.
-MODES = ("grammar", "free")
+#: "score" (Whisper only): every dictionary phrase scored by the decoder, free decoding as evidence.
+MODES = ("grammar", "free", "score")
 
 
 class UnknownEngineError(GcsVoiceError):
@@ -51,6 +52,8 @@ def load_recognizer(
     """Load ``engine`` once for these dictionaries; ``model`` is a path (or a Whisper size name)."""
     if mode not in MODES:
         raise GcsVoiceError(f"unknown recognition mode {mode!r} (known: {', '.join(MODES)})")
+    if mode == "score" and engine != "whisper":
+        raise GcsVoiceError(f"mode 'score' needs the whisper engine, not {engine!r}")
     if not dictionaries:
         raise GcsVoiceError("a recogniser needs at least one dictionary")
     return _engine_class(engine).load(list(dictionaries), model=model, mode=mode)

@@ -3,7 +3,9 @@
 Short commands make Whisper hallucinate (repetition loops, invented sentences on noise), so each
 utterance is decoded in ONE 30 s window with: a few new tokens at most (``max_new_tokens``), no
 previous-text conditioning, no timestamps, the dictionary phrases as the prompt, the language forced
-when known. Whisper has no grammar: ``mode="grammar"`` means the prompt bias, ``"free"`` no prompt.
+when known. Whisper has no grammar: ``mode="grammar"`` means the prompt bias, ``"free"`` no prompt,
+``"score"`` scores every dictionary phrase under the decoder (see :mod:`whisper_score`) and
+reports itself as engine ``whisper-score`` (its own rejection thresholds).
 We call CTranslate2's ``generate`` ourselves (as faster-whisper's
 ``generate_with_fallback`` does) to get the beam's n-best list, which ``transcribe`` hides.
 ``--lang auto`` picks, per utterance, the most probable of the loaded dictionaries' languages.
@@ -38,6 +40,8 @@ class WhisperRecognizer:
 
         self.settings = engine_settings("whisper")
         self.mode = mode
+        if mode == "score":
+            self.name = "whisper-score"
         resolved = find_whisper_model(model, self.settings.get("model_dirs"))
         if resolved is None:
             raise ModelError(whisper_model_hint("base"))
@@ -114,6 +118,9 @@ class WhisperRecognizer:
         features = self.model.feature_extractor(audio)
         encoder_output = self.model.encode(pad_or_trim(features))
         lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
+        if self.mode == "score":
+            return self._decode_scored(encoder_output, features.shape[-1], lang, audio_s,
+                                       {"language_probability": lang_prob, "dictionary_language_mass": known_mass})
         prompt = self._prompt(lang)
         tokenizer = self._tokenizer(lang)
         s = self.settings
@@ -162,6 +169,40 @@ class WhisperRecognizer:
             "dictionary_language_mass": known_mass,
             "temperature": temperature,
         }
+        return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
+
+    def _decode_scored(self, encoder_output, num_frames: int, lang: str, audio_s: float,
+                       extra: dict[str, float]) -> Recognition:
+        """Free decoding once (evidence), then every phrase of ``lang`` teacher-forced, best first."""
+        from gcs_voice.asr.whisper_score import class_posteriors, score_phrases
+
+        s = self.settings
+        tokenizer = self._tokenizer(lang)
+        prompt = self._prompt(lang)  # mode "score": no dictionary prompt
+        free = self.model.model.generate(
+            encoder_output, [prompt], max_length=len(prompt) + int(s.get("max_new_tokens", 16)),
+            beam_size=int(s.get("score_free_beam_size", 2)), return_scores=True, return_no_speech_prob=True,
+            suppress_blank=True, suppress_tokens=[-1],
+        )[0]
+        tokens = free.sequences_ids[0]
+        free_logprob = free.scores[0] * len(tokens) / (len(tokens) + 1)  # as faster-whisper recovers it
+        scores = score_phrases(self.model.model, encoder_output, tokenizer, [self.dictionaries[lang]], num_frames,
+                               int(s.get("score_batch_size", 32)), int(s.get("score_context_frames", 100)))
+        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.1)))
+        hypotheses = []
+        for item in scores[: int(s.get("score_alternatives", 5))]:
+            # confidence = the class' share of the softmax over all phrases (synonyms add up)
+            hypotheses.append(Hypothesis(item.phrase.text, confidence=posterior[item.phrase.action],
+                                         score=item.logprob))
+        best = scores[0].logprob if scores else -math.inf
+        extra.update({
+            "no_speech_prob": float(free.no_speech_prob),
+            "free_logprob": float(free_logprob),
+            "phrase_logprob": best,
+            # how much more probable the unconstrained transcript is than the best phrase (per token)
+            "free_margin": float(free_logprob) - best,
+        })
+        self.last_free_text = tokenizer.decode(tokens).strip()  # diagnostics (extra holds numbers only)
         return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
 
 

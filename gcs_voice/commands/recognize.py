@@ -27,8 +27,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "for English, whisper if a Whisper model is known)")
     parser.add_argument("--model", default=None, metavar="PATH",
                         help="model folder (Vosk, faster-whisper or PocketSphinx) or a Whisper size name")
-    parser.add_argument("--mode", choices=("grammar", "free"), default="grammar",
-                        help="grammar: only dictionary words (plus unknown); free: open vocabulary (default: grammar)")
+    parser.add_argument("--mode", choices=("grammar", "free", "score"), default="grammar",
+                        help="grammar: only dictionary words (plus unknown); free: open vocabulary; score (whisper): "
+                             "every dictionary phrase scored by the decoder (default: grammar)")
     parser.add_argument("--matcher", default=None, help="matcher name (default: the project default)")
     parser.add_argument("--dictionary", action="append", default=None, metavar="TOML",
                         help="use this dictionary file instead of the bundled one (repeatable)")
