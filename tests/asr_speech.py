@@ -1,4 +1,9 @@
-"""Test speech made on the spot with espeak-ng (and sox for other WAV formats): real audio, no files committed."""
+"""Test speech made on the spot with espeak-ng (and sox for other WAV formats): real audio, no files committed.
+
+sox runs with -R (repeatable): its dither is otherwise random, and PocketSphinx answers differently to
+the same words under different dither ("open the door" vs "oh lord" about one run in six), which made
+tests flaky. The dither itself stays: without it espeak's exact digital silence throws PocketSphinx off.
+"""
 
 from __future__ import annotations
 
@@ -22,7 +27,7 @@ def say(text: str, path: Path, voice: str = "en-us", speed_wpm: int = 175) -> Pa
     need("sox")
     raw = path.with_suffix(".espeak.wav")
     subprocess.run(["espeak-ng", "-v", voice, "-s", str(speed_wpm), "-w", str(raw), text], check=True)
-    subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(path)], check=True)
+    subprocess.run(["sox", "-R", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(path)], check=True)
     raw.unlink()
     return path
 

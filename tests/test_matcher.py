@@ -105,6 +105,9 @@ def test_nothing_heard(name: str) -> None:
         assert d.action is None and d.reason == "nothing heard"
     d = m.decide(heard("please"), [EN])
     assert d.action is None and "filler" in d.reason
+    # a recogniser whose garbage branch won (PocketSphinx grammar mode) heard speech, not silence
+    d = m.decide(heard(engine="sphinx", out_of_grammar=1.0), [EN])
+    assert d.action is None and d.reason.startswith("not a command")
 
 
 # Near-miss pairs across classes: the heard text must never become the *other* class.

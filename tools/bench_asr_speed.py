@@ -56,7 +56,7 @@ def korean_corpus() -> list[tuple[bytes, str | None]]:
         for i, text in enumerate(KO_SAID):
             raw, wav = Path(tmp) / f"{i}.raw.wav", Path(tmp) / f"{i}.wav"
             subprocess.run(["espeak-ng", "-v", "ko", "-w", str(raw), text], check=True)
-            subprocess.run(["sox", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(wav)], check=True)
+            subprocess.run(["sox", "-R", str(raw), "-r", "16000", "-c", "1", "-b", "16", str(wav)], check=True)
             out.append((read_wav(wav), ko.by_key[text].action))
     return out
 

@@ -146,6 +146,8 @@ class Matcher:
         ]
         heard = [item for item in heard if item[2]]
         if not heard:
+            if recognition.extra.get("out_of_grammar"):
+                return Ranking(None, None, "not a command (the recogniser heard speech outside the dictionary)")
             return Ranking(None, None, "nothing heard")
         # An alternative the engine itself gives little chance is not evidence for an action.
         floor = limits["min_confidence"]
