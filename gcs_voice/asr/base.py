@@ -11,7 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
-__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer"]
+__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer", "BufferedStream"]
 
 #: Every engine takes 16 kHz, mono, signed 16-bit little-endian PCM.
 SAMPLE_RATE = 16_000
@@ -67,3 +67,23 @@ class Recognizer(Protocol):
     languages: tuple[str, ...]
 
     def start_stream(self, lang: str | None = None) -> RecognizerStream: ...
+
+
+class BufferedStream:
+    """Base for engines that decode a whole utterance at ``finish`` (Whisper, PocketSphinx): ``accept``
+    only buffers; a subclass's ``finish`` calls ``_take()`` to end the stream and get the PCM."""
+
+    def __init__(self) -> None:
+        self._pcm = bytearray()
+        self._done = False
+
+    def accept(self, pcm: bytes) -> None:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        self._pcm += pcm
+
+    def _take(self) -> bytes:
+        if self._done:
+            raise RuntimeError("stream already finished")
+        self._done = True
+        return bytes(self._pcm)

@@ -13,7 +13,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 
-from gcs_voice.asr.base import SAMPLE_RATE, Hypothesis, Recognition
+from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import sphinx_model_dir
 from gcs_voice.asr.settings import engine_settings
 from gcs_voice.dictionary import Dictionary
@@ -109,35 +109,27 @@ class SphinxRecognizer:
         return self._open
 
 
-class SphinxStream:
+class SphinxStream(BufferedStream):
     """One utterance. PCM is buffered and decoded at ``finish`` as one whole utterance, because
     PocketSphinx's live cepstral-mean normalisation misrecognises the first second of a stream
     (measured: "go up", "turn left" lost to garbage when streamed, found when decoded whole)."""
 
     def __init__(self, recognizer: SphinxRecognizer):
+        super().__init__()
         self._rec = recognizer
-        self._pcm = bytearray()
-        self._done = False
-
-    def accept(self, pcm: bytes) -> None:
-        if self._done:
-            raise RuntimeError("stream already finished")
-        self._pcm += pcm
 
     def abandon(self) -> None:
         self._done = True
 
     def finish(self) -> Recognition:
-        if self._done:
-            raise RuntimeError("stream already finished")
+        pcm = self._take()
         rec, decoder = self._rec, self._rec.decoder
-        self._done = True
         rec._open = None
-        audio_s = len(self._pcm) / 2 / SAMPLE_RATE
+        audio_s = len(pcm) / 2 / SAMPLE_RATE
         decoder.set_cmn(rec.initial_cmn)
         decoder.start_utt()
-        if len(self._pcm) >= 2:
-            decoder.process_raw(bytes(self._pcm[: len(self._pcm) // 2 * 2]), False, True)
+        if len(pcm) >= 2:
+            decoder.process_raw(pcm[: len(pcm) // 2 * 2], False, True)
         decoder.end_utt()
         hyp = decoder.hyp()
         words = [s for s in decoder.seg() if not s.word.startswith(("<", "["))] if hyp else []

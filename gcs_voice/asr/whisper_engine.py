@@ -20,7 +20,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from gcs_voice.asr.base import SAMPLE_RATE, Hypothesis, Recognition
+from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
 from gcs_voice.asr.settings import engine_settings
 from gcs_voice.dictionary import Dictionary
@@ -206,23 +206,14 @@ class WhisperRecognizer:
         return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
 
 
-class WhisperStream:
+class WhisperStream(BufferedStream):
     """Whisper decodes whole utterances: PCM is buffered and decoded at ``finish``."""
 
     def __init__(self, recognizer: WhisperRecognizer, lang: str | None):
+        super().__init__()
         self._rec = recognizer
         self._lang = lang
-        self._pcm = bytearray()
-        self._done = False
-
-    def accept(self, pcm: bytes) -> None:
-        if self._done:
-            raise RuntimeError("stream already finished")
-        self._pcm += pcm
 
     def finish(self) -> Recognition:
-        if self._done:
-            raise RuntimeError("stream already finished")
-        self._done = True
         max_samples = 30 * SAMPLE_RATE  # one Whisper window; a command is far shorter
-        return self._rec.decode(bytes(self._pcm[: max_samples * 2]), self._lang)
+        return self._rec.decode(self._take()[: max_samples * 2], self._lang)
