@@ -120,7 +120,8 @@ def recognise_one(recognizer, item: Item) -> dict:
     audio_s = len(pcm) / 2 / 16_000
     return {
         "hypotheses": [[h.text, h.confidence, h.score] for h in rec.hypotheses],
-        "engine": rec.engine, "lang": rec.lang, "extra": dict(rec.extra), "audio_s": audio_s,
+        "engine": rec.engine, "lang": rec.lang, "extra": dict(rec.extra), "transcript": rec.transcript,
+        "audio_s": audio_s,
         "latency_s": clock - n_chunks * CHUNK_S, "busy_s": busy,
     }
 
@@ -158,6 +159,7 @@ def recognition(engine: str, rec: dict) -> Recognition:
     return Recognition(
         hypotheses=tuple(Hypothesis(t, c, s) for t, c, s in rec["hypotheses"]),
         engine=rec.get("engine", engine), lang=rec.get("lang"), audio_s=rec.get("audio_s", 0.0), extra=rec.get("extra", {}),
+        transcript=rec.get("transcript", ""),
     )
 
 

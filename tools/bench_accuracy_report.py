@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bench_accuracy import (
-    BEGIN, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, load_cache, recognition, score,
+    BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, load_cache, recognition, score,
 )
 from gcs_voice.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
 from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
@@ -165,6 +165,10 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
     dictionaries = {lang: load_language(lang) for lang in LANGS}
     items = [it for it in items if it.split in ("dev", "real")]
     for engine in engines:
+        if engine.endswith("-score"):  # phrases scored by the engine: its own rejection settings
+            for m in matchers:
+                tune_scored(engine, m, items, CACHE_DIR / "tune")
+            continue
         cache = load_cache(engine)
         cached = [it for it in items if it.key in cache]
         if not cached:
@@ -191,3 +195,63 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
                 print(f"  {'ok ' if ok else 'no '} {max_d:.2f} {margin:.2f} {min_conf:.1f} | {dev.pct('right'):5.1f} "
                       f"{dev.pct('wrong'):5.1f} {dev.pct('rejected'):5.1f} {dev.pct('false_accept'):5.1f} | "
                       f"{real.right}/{real.wrong}/{real.rejected} {real.false_accept}/{real.n_ood}  obj {obj:.1f}")
+
+
+#: Whisper score-mode rejection settings swept by ``tune_scored`` ([evidence]/[transcript] tables).
+SCORED_GRID = {
+    ("evidence", "min_class_gap"): (0.25, 0.5, 0.75, 1.0),
+    ("transcript", "confident_logprob"): (-0.6, -1.0, -1.5),
+    ("transcript", "confident_max_distance"): (0.3, 0.4, 0.5, 0.6, 1.0),
+    ("transcript", "min_phrase_score"): (-9.0, -1.0, -0.5, 0.0),
+    ("transcript", "agree_max_distance"): (0.3, 0.5),
+}
+
+
+def _toml(table: dict, prefix: str = "") -> str:
+    """A nested dict of numbers as TOML (enough for thresholds.toml)."""
+    scalars = [f"{k} = {v!r}" for k, v in table.items() if not isinstance(v, dict)]
+    out = ([f"[{prefix}]"] if prefix and scalars else []) + scalars
+    for k, v in table.items():
+        if isinstance(v, dict):
+            out.append(_toml(v, f"{prefix}.{k}" if prefix else k))
+    return "\n".join(out) + "\n"
+
+
+def tune_scored(engine: str, matcher_name: str, items: list[Item], workdir: Path) -> None:
+    """Sweep the score-mode rejection settings (SCORED_GRID) on the dev split + real voices."""
+    import tomllib
+
+    from gcs_voice.matcher.thresholds import THRESHOLDS_PATH
+
+    dictionaries = {lang: load_language(lang) for lang in LANGS}
+    cache = load_cache(engine)
+    cached = [(it, recognition(engine, cache[it.key])) for it in items
+              if it.split in ("dev", "real") and it.key in cache]
+    base = tomllib.loads(THRESHOLDS_PATH.read_text(encoding="utf-8"))
+    workdir.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for n, values in enumerate(itertools.product(*SCORED_GRID.values())):
+        table = {k: (dict(v) if isinstance(v, dict) else v) for k, v in base.items()}
+        for (section, key), value in zip(SCORED_GRID, values):
+            table.setdefault(section, {})
+            table[section] = dict(table[section])
+            table[section][engine] = {**table[section].get(engine, {}), key: value}
+        path = workdir / f"thresholds-{n}.toml"
+        path.write_text(_toml(table), encoding="utf-8")
+        matcher = get_matcher(matcher_name, thresholds_path=path)
+        dev, real = Score(), Score()
+        for it, rec in cached:
+            got = matcher.decide(rec, [dictionaries[it.lang]]).action or "none"
+            (real if it.split == "real" else dev).add(it.truth, got)
+        ok = not dev.pct("false_accept") > 2.0 and real.false_accept <= 1
+        objective = (_z(dev.pct("right")) + _z(real.pct("right")) - 3 * (_z(dev.pct("wrong")) + _z(real.pct("wrong")))
+                     - 2 * (_z(dev.pct("false_accept")) + _z(real.pct("false_accept"))))
+        rows.append((ok, objective, values, dev, real))
+    rows.sort(key=lambda r: (not r[0], -r[1]))
+    names = " ".join(key for _, key in SCORED_GRID)
+    print(f"\n{engine} + {matcher_name}: (meets FA limits?) {names} | dev right/wrong/rej FA | real right/wrong/rej "
+          f"acted-on-non-command  ({len(cached)} utterances)")
+    for ok, obj, values, dev, real in rows[:10]:
+        print(f"  {'ok ' if ok else 'no '} {' '.join(f'{v:g}' for v in values)} | {dev.pct('right'):5.1f} "
+              f"{dev.pct('wrong'):5.1f} {dev.pct('rejected'):5.1f} {dev.pct('false_accept'):5.1f} | "
+              f"{real.right}/{real.wrong}/{real.rejected} {real.false_accept}/{real.n_ood}  obj {obj:.1f}")

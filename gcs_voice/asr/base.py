@@ -40,6 +40,9 @@ class Recognition:
     audio_s: float = 0.0
     #: Engine-specific evidence useful for rejection (e.g. Whisper's no_speech_prob), by name.
     extra: dict[str, float] = field(default_factory=dict)
+    #: The engine's own unconstrained transcript when the hypotheses are dictionary phrases it was
+    #: asked to score (Whisper mode "score"); "" otherwise. Matchers read it as evidence.
+    transcript: str = ""
 
     @property
     def best(self) -> Hypothesis | None:

@@ -15,7 +15,7 @@ from gcs_voice.dictionary import Dictionary
 from gcs_voice.errors import GcsVoiceError, ModelError
 
 __all__ = ["ENGINES", "ENGINE_PACKAGES", "MODES", "UnknownEngineError", "load_recognizer",
-           "available_engines", "default_engine"]
+           "available_engines", "default_engine", "default_mode"]
 
 #: engine name -> "module:Class"; the class has ``load(dictionaries, model, mode) -> Recognizer``.
 ENGINES: dict[str, str] = {
@@ -46,10 +46,22 @@ def _engine_class(engine: str):
     return getattr(importlib.import_module(module_name), class_name)
 
 
+def default_mode(engine: str) -> str:
+    """The engine's best mode on the accuracy benchmark (``default_mode`` in asr/engines.toml)."""
+    from gcs_voice.asr.settings import engine_settings
+
+    return str(engine_settings(engine).get("default_mode", "grammar")) if engine in ENGINES else "grammar"
+
+
 def load_recognizer(
-    engine: str, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"
+    engine: str, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str | None = None
 ) -> Recognizer:
-    """Load ``engine`` once for these dictionaries; ``model`` is a path (or a Whisper size name)."""
+    """Load ``engine`` once for these dictionaries; ``model`` is a path (or a Whisper size name).
+
+    ``mode`` None = the engine's :func:`default_mode`.
+    """
+    if mode is None:
+        mode = default_mode(engine)
     if mode not in MODES:
         raise GcsVoiceError(f"unknown recognition mode {mode!r} (known: {', '.join(MODES)})")
     if mode == "score" and engine != "whisper":

@@ -23,6 +23,7 @@ import numpy as np
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
 from gcs_voice.asr.settings import engine_settings
+from gcs_voice.asr.whisper_score import canonical_tokens
 from gcs_voice.dictionary import Dictionary
 from gcs_voice.errors import ModelError
 from gcs_voice.text import normalize_text
@@ -62,6 +63,7 @@ class WhisperRecognizer:
         if not self.model.model.is_multilingual and set(self.languages) - {"en"}:
             raise ModelError(f"Whisper model {resolved} is English-only; it cannot do {', '.join(self.languages)}")
         self._prompts: dict[str, list[int]] = {}
+        self._phrase_priors: dict[str, list[float]] = {}
 
     @classmethod
     def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
@@ -94,7 +96,7 @@ class WhisperRecognizer:
             previous: list[int] = []
             if self.mode == "grammar" and self.settings.get("prompt_with_dictionary", True):
                 words = ", ".join(self.dictionaries[lang].vocabulary()) + "."
-                previous = tokenizer.encode(" " + words)
+                previous = canonical_tokens(tokenizer, " " + words)
             self._prompts[lang] = self.model.get_prompt(tokenizer, previous, without_timestamps=True)
         return self._prompts[lang]
 
@@ -115,12 +117,11 @@ class WhisperRecognizer:
         audio_s = audio.size / SAMPLE_RATE
         if audio.size < SAMPLE_RATE // 10:  # under 0.1 s: nothing to decode
             return Recognition((), self.name, fixed_lang, audio_s, {})
+        if self.mode == "score":
+            return self._decode_scored(audio, fixed_lang, audio_s)
         features = self.model.feature_extractor(audio)
         encoder_output = self.model.encode(pad_or_trim(features))
         lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
-        if self.mode == "score":
-            return self._decode_scored(encoder_output, features.shape[-1], lang, audio_s,
-                                       {"language_probability": lang_prob, "dictionary_language_mass": known_mass})
         prompt = self._prompt(lang)
         tokenizer = self._tokenizer(lang)
         s = self.settings
@@ -171,39 +172,59 @@ class WhisperRecognizer:
         }
         return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
 
-    def _decode_scored(self, encoder_output, num_frames: int, lang: str, audio_s: float,
-                       extra: dict[str, float]) -> Recognition:
-        """Free decoding once (evidence), then every phrase of ``lang`` teacher-forced, best first."""
-        from gcs_voice.asr.whisper_score import class_posteriors, score_phrases
+    # -- mode "score" -----------------------------------------------------------------------------
+    def _encode_short(self, audio: np.ndarray):
+        """Encoder output of the audio plus ``score_pad_s`` of silence (not a 30 s window)."""
+        pad = np.zeros(int(float(self.settings.get("score_pad_s", 1.0)) * SAMPLE_RATE), dtype=np.float32)
+        features = self.model.feature_extractor(np.concatenate([audio[: 28 * SAMPLE_RATE], pad]))[:, :-1]
+        return self.model.encode(features), features.shape[-1]
+
+    def _priors(self, lang: str) -> list[float]:
+        """Every phrase of ``lang`` scored on one second of silence (once per language)."""
+        from gcs_voice.asr.whisper_score import phrase_priors
+
+        if lang not in self._phrase_priors:
+            encoded, frames = self._encode_short(np.zeros(SAMPLE_RATE, dtype=np.float32))
+            self._phrase_priors[lang] = phrase_priors(self.model.model, encoded, self._tokenizer(lang),
+                                                      self.dictionaries[lang], frames,
+                                                      int(self.settings.get("score_batch_size", 8)))
+        return self._phrase_priors[lang]
+
+    def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
+        """Every phrase of the language scored on a short encoder window; free decoding as evidence."""
+        from gcs_voice.asr.whisper_score import class_gap, class_posteriors, collapse_repeats, score_phrases
 
         s = self.settings
+        encoded, frames = self._encode_short(audio)
+        lang, lang_prob, known_mass = self.detect(encoded, fixed_lang)
         tokenizer = self._tokenizer(lang)
         prompt = self._prompt(lang)  # mode "score": no dictionary prompt
         free = self.model.model.generate(
-            encoder_output, [prompt], max_length=len(prompt) + int(s.get("max_new_tokens", 16)),
+            encoded, [prompt], max_length=len(prompt) + int(s.get("max_new_tokens", 16)),
             beam_size=int(s.get("score_free_beam_size", 2)), return_scores=True, return_no_speech_prob=True,
             suppress_blank=True, suppress_tokens=[-1],
         )[0]
         tokens = free.sequences_ids[0]
         free_logprob = free.scores[0] * len(tokens) / (len(tokens) + 1)  # as faster-whisper recovers it
-        scores = score_phrases(self.model.model, encoder_output, tokenizer, [self.dictionaries[lang]], num_frames,
-                               int(s.get("score_batch_size", 32)), int(s.get("score_context_frames", 100)))
-        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.1)))
+        scores = score_phrases(self.model.model, encoded, tokenizer, self.dictionaries[lang], frames,
+                               self._priors(lang), float(s.get("score_prior_weight", 0.6)),
+                               int(s.get("score_batch_size", 8)))
+        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.5)))
         hypotheses = []
         for item in scores[: int(s.get("score_alternatives", 5))]:
             # confidence = the class' share of the softmax over all phrases (synonyms add up)
             hypotheses.append(Hypothesis(item.phrase.text, confidence=posterior[item.phrase.action],
                                          score=item.logprob))
-        best = scores[0].logprob if scores else -math.inf
-        extra.update({
+        extra = {
+            "language_probability": lang_prob,
+            "dictionary_language_mass": known_mass,
             "no_speech_prob": float(free.no_speech_prob),
             "free_logprob": float(free_logprob),
-            "phrase_logprob": best,
-            # how much more probable the unconstrained transcript is than the best phrase (per token)
-            "free_margin": float(free_logprob) - best,
-        })
-        self.last_free_text = tokenizer.decode(tokens).strip()  # diagnostics (extra holds numbers only)
-        return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
+            "phrase_score": scores[0].logprob if scores else -math.inf,
+            "class_gap": min(class_gap(scores), 99.0),
+        }
+        transcript = collapse_repeats(tokenizer.decode(tokens).strip())
+        return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra, transcript=transcript)
 
 
 class WhisperStream(BufferedStream):

@@ -27,9 +27,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "for English, whisper if a Whisper model is known)")
     parser.add_argument("--model", default=None, metavar="PATH",
                         help="model folder (Vosk, faster-whisper or PocketSphinx) or a Whisper size name")
-    parser.add_argument("--mode", choices=("grammar", "free", "score"), default="grammar",
+    parser.add_argument("--mode", choices=("grammar", "free", "score"), default=None,
                         help="grammar: only dictionary words (plus unknown); free: open vocabulary; score (whisper): "
-                             "every dictionary phrase scored by the decoder (default: grammar)")
+                             "every dictionary phrase scored by the decoder (default: the engine's best on the "
+                             "benchmark: score for whisper, grammar for the others)")
     parser.add_argument("--matcher", default=None, help="matcher name (default: the project default)")
     parser.add_argument("--dictionary", action="append", default=None, metavar="TOML",
                         help="use this dictionary file instead of the bundled one (repeatable)")
@@ -116,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
                 "alternatives": [h.text for h in recognition.hypotheses],
                 "extra": {k: round(v, 4) for k, v in recognition.extra.items()},
             }
+            if recognition.transcript:
+                row["transcript"] = recognition.transcript
             if start_s is not None:
                 row.update(start_s=round(start_s, 3), end_s=round(end_s, 3))
             print(json.dumps(row, ensure_ascii=False) if args.json else _format_line(row), flush=True)
