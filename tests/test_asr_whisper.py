@@ -16,7 +16,7 @@ EN, ES = load_language("en"), load_language("es")
 
 @pytest.fixture(scope="module")
 def whisper(whisper_model_dir):
-    return load_recognizer("whisper", [EN, ES], model=str(whisper_model_dir))
+    return load_recognizer("whisper", [EN, ES], model=str(whisper_model_dir), mode="grammar")
 
 
 def _recognise(recognizer, pcm, lang):
@@ -143,3 +143,19 @@ def test_repetitions_of_a_short_window_collapse_to_one():
     assert collapse_repeats("Go to the right. Go to the right. Go to") == "Go to the right"
     assert collapse_repeats("I'm going home.") == "I'm going home"
     assert collapse_repeats("") == ""
+
+
+def test_default_engine_and_mode_follow_the_benchmark(whisper_model_dir, monkeypatch, tmp_path):
+    """A found Whisper model is preferred to PocketSphinx, in its scoring mode (docs/bench/accuracy.md)."""
+    from gcs_voice.asr.registry import default_engine, default_mode
+
+    monkeypatch.setenv("VOSK_MODEL_PATH", str(tmp_path))
+    monkeypatch.setenv("HOME", str(tmp_path))
+    monkeypatch.delenv("GCS_VOICE_WHISPER_MODEL", raising=False)
+    assert default_engine("en") == "sphinx"  # nothing but pip
+    monkeypatch.setenv("GCS_VOICE_WHISPER_MODEL", str(whisper_model_dir))
+    assert default_engine("en") == "whisper"
+    assert default_engine("es") == "whisper"
+    assert default_mode("whisper") == "score"
+    assert default_mode("sphinx") == "grammar"
+    assert load_recognizer("whisper", [EN], model=str(whisper_model_dir)).name == "whisper-score"

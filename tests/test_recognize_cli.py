@@ -92,7 +92,7 @@ def test_whisper_auto_language(wavs, whisper_model_dir, real_speech_dir):
     rows = _rows(recognize(str(wavs["turn right"]), str(real), "--engine", "whisper",
                            "--model", str(whisper_model_dir), "--lang", "auto", "--json"))
     assert [(r["lang"], r["action"]) for r in rows] == [("en", "turn_right"), ("en", "stop")]
-    assert all(r["engine"] == "whisper" for r in rows)
+    assert all(r["engine"] == "whisper-score" for r in rows)  # the default mode
 
 
 @pytest.mark.parametrize("args,message", [

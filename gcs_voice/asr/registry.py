@@ -80,19 +80,21 @@ def available_engines() -> dict[str, str | None]:
 
 
 def default_engine(lang: str) -> str:
-    """Vosk when a model for ``lang`` is found; else Sphinx for English, Whisper when a model is known.
+    """Vosk when a model for ``lang`` is found; else Whisper when a model is found; else Sphinx (English).
 
-    ``lang`` "auto" needs a multilingual engine: Whisper.
+    The order is the accuracy benchmark's (docs/bench/accuracy.md): Whisper base hears far more
+    commands right than PocketSphinx (real voices 67/75 vs 33/75) at ~1 s per command instead of
+    ~0.1 s; PocketSphinx needs nothing beyond pip. ``lang`` "auto" needs a multilingual engine: Whisper.
     """
     from gcs_voice.asr import models
     from gcs_voice.asr.settings import engine_settings
 
     if lang != "auto" and models.find_vosk_model(lang) is not None:
         return "vosk"
-    if lang == "en":
-        return "sphinx"
     if models.find_whisper_model(None, engine_settings("whisper").get("model_dirs")) is not None:
         return "whisper"
+    if lang == "en":
+        return "sphinx"
     if lang == "auto":
         raise ModelError("--lang auto needs a Whisper model: set GCS_VOICE_WHISPER_MODEL or pass "
                          "--engine whisper --model PATH")
