@@ -78,7 +78,7 @@ def _decide(recognizer, pcm, lang):
     from gcs_voice.matcher import get_matcher
 
     result = _recognise(recognizer, pcm, lang)
-    return result, get_matcher("phonetic").decide(result, [EN if lang == "en" else ES])
+    return result, get_matcher("phonetic").decide(result, [EN, ES] if lang == "auto" else [EN if lang == "en" else ES])
 
 
 @pytest.mark.slow
@@ -159,3 +159,13 @@ def test_default_engine_and_mode_follow_the_benchmark(whisper_model_dir, monkeyp
     assert default_mode("whisper") == "score"
     assert default_mode("sphinx") == "grammar"
     assert load_recognizer("whisper", [EN], model=str(whisper_model_dir)).name == "whisper-score"
+
+
+@pytest.mark.slow
+def test_score_mode_auto_language_scores_every_language(whisper_score, tmp_path):
+    """--lang auto: the best phrase over both dictionaries picks the language, even where Whisper's
+    language detection calls espeak-ng's Spanish English (it gives "baja" < 10 % Spanish here)."""
+    result, _ = _decide(whisper_score, pcm_of("baja", tmp_path, "es"), "auto")
+    assert result.lang == "es" and result.text == "baja"
+    result, _ = _decide(whisper_score, pcm_of("turn left", tmp_path, "en-us"), "auto")
+    assert result.lang == "en" and result.text == "turn left"
