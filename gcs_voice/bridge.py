@@ -19,6 +19,7 @@ Three kinds of thread meet here. The voice side (``gcs_voice.listen``) and the k
 from __future__ import annotations
 
 import queue
+import signal
 import threading
 import time
 from dataclasses import dataclass, field
@@ -80,6 +81,7 @@ class Bridge:
         self.takeoff_m = takeoff_m
         self._requests: queue.Queue[Request] = queue.Queue()
         self._finish = threading.Event()
+        self._interrupted = False  # set by the SIGINT handler (a plain flag: no lock taken in a handler)
         self._busy: str | None = None  # flight operation in progress
         self._op_thread: threading.Thread | None = None
         self._link_ok: bool | None = None
@@ -110,9 +112,16 @@ class Bridge:
 
     # ---- the loop ---------------------------------------------------------------------------------
     def run(self) -> int:
-        """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``."""
+        """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
+
+        Ctrl-C only sets a flag that the loop reads: a KeyboardInterrupt raised at an arbitrary
+        bytecode could leave a lock (the link's, a queue's) held and hang the final stop.
+        """
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGINT, self._on_sigint)
         try:
-            while not self._finish.is_set():
+            while not self._finish.is_set() and not self._interrupted:
                 try:
                     request = self._requests.get(timeout=LOOP_PERIOD_S)
                 except queue.Empty:
@@ -123,12 +132,21 @@ class Bridge:
                         self._serve(request)
                     finally:
                         request.done.set()
-        except KeyboardInterrupt:
-            self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt")
-            self.exit_code = self.exit_code or 130
+        except KeyboardInterrupt:  # only when no handler could be installed (not the main thread)
+            self._interrupted = True
         finally:
-            self.shutdown()
+            if self._interrupted:
+                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt")
+                self.exit_code = self.exit_code or 130
+            try:
+                self.shutdown()
+            finally:
+                if previous is not None:
+                    signal.signal(signal.SIGINT, previous)
         return self.exit_code
+
+    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+        self._interrupted = True
 
     def _watch(self) -> None:
         """Link transitions and the mapper's automatic changes, said once each."""
