@@ -27,7 +27,7 @@ sys.path.insert(0, str(REPO / "tools"))
 
 import bench_accuracy  # noqa: E402
 import bench_accuracy_engines as bench_engines  # noqa: E402
-from gcs_voice.asr.whisper_score import _mean_logprobs, phrase_tokens  # noqa: E402
+from gcs_voice.asr.whisper_score import phrase_logprobs  # noqa: E402
 
 CACHE = REPO / "out" / "bench" / "score-raw-logprobs.json"
 
@@ -36,10 +36,8 @@ def raw_scores(recognizer, item) -> list[float]:
     """Mean token log-probability of every phrase of the item's language (no prior subtracted)."""
     samples = bench_accuracy.make_corpus.read_wav(item.path).astype(np.float32)
     encoded, frames = recognizer._encode_short(samples)
-    dictionary = recognizer.dictionaries[item.lang]
-    tokenizer = recognizer._tokenizer(item.lang)
-    sequences = [phrase_tokens(tokenizer, p) for p in dictionary.phrases]
-    return _mean_logprobs(recognizer.model.model, encoded, tokenizer, sequences, frames, 8)
+    return phrase_logprobs(recognizer.model.model, encoded, recognizer._tokenizer(item.lang),
+                           recognizer.dictionaries[item.lang], frames)
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -181,13 +181,13 @@ class WhisperRecognizer:
 
     def _priors(self, lang: str) -> list[float]:
         """Every phrase of ``lang`` scored on one second of silence (once per language)."""
-        from gcs_voice.asr.whisper_score import phrase_priors
+        from gcs_voice.asr.whisper_score import phrase_logprobs
 
         if lang not in self._phrase_priors:
             encoded, frames = self._encode_short(np.zeros(SAMPLE_RATE, dtype=np.float32))
-            self._phrase_priors[lang] = phrase_priors(self.model.model, encoded, self._tokenizer(lang),
-                                                      self.dictionaries[lang], frames,
-                                                      int(self.settings.get("score_batch_size", 8)))
+            self._phrase_priors[lang] = phrase_logprobs(self.model.model, encoded, self._tokenizer(lang),
+                                                        self.dictionaries[lang], frames,
+                                                        int(self.settings.get("score_batch_size", 8)))
         return self._phrase_priors[lang]
 
     def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
@@ -217,7 +217,7 @@ class WhisperRecognizer:
         )[0]
         tokens = free.sequences_ids[0]
         free_logprob = free.scores[0] * len(tokens) / (len(tokens) + 1)  # as faster-whisper recovers it
-        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.5)))
+        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.25)))
         hypotheses = []
         for item in scores[: int(s.get("score_alternatives", 5))]:
             # confidence = the class' share of the softmax over all phrases (synonyms add up)

@@ -7,7 +7,8 @@ encoder pass. A phrase is written the way Whisper transcribes it (capital first 
 period: ``align`` masks end-of-text, and the period is what stops "Go." from winning over "Go up.").
 
 Three things make the scores comparable across phrases (measured on the dev split, docs/bench/accuracy.md):
-- the encoder sees the utterance plus a short silence, not a 30 s window (~20x faster, and no worse);
+- the encoder sees the utterance plus a short silence, not a 30 s window (accuracy
+  and time against the 30 s window: docs/bench/accuracy.md, paired and Timing tables);
 - a phrase's score is its mean token log-probability *minus* ``prior_weight`` x the same on silence:
   how much the audio raises the phrase, not how common the phrase is ("Go ahead." was winning on
   anything unclear);
@@ -25,8 +26,8 @@ import numpy as np
 
 from gcs_voice.dictionary import Dictionary, Phrase
 
-__all__ = ["PhraseScore", "canonical_tokens", "phrase_tokens", "score_phrases", "class_posteriors",
-           "class_gap", "collapse_repeats"]
+__all__ = ["PhraseScore", "canonical_tokens", "phrase_tokens", "phrase_logprobs", "score_phrases",
+           "class_posteriors", "class_gap", "collapse_repeats"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
 
@@ -44,8 +45,8 @@ def canonical_tokens(tokenizer, text: str) -> list[int]:
     """Token ids of ``text`` as Whisper itself would emit them.
 
     faster-whisper-base's ``tokenizer.json`` lacks the BPE merge of a space with "t", so " to" and
-    " the" encode as [" ", "to"] and [" ", "the"]: token pairs the model never produces, scored ~10
-    nats too low. A lone space token is joined to the next token whenever the joined token exists.
+    " the" encode as [" ", "to"] and [" ", "the"]: token pairs the model never produces, scored far
+    too low. A lone space token is joined to the next token whenever the joined token exists.
     """
     hf = tokenizer.tokenizer
     ids = list(tokenizer.encode(text))
@@ -69,10 +70,16 @@ def phrase_tokens(tokenizer, phrase: Phrase) -> list[int]:
     return canonical_tokens(tokenizer, " " + phrase.text[:1].upper() + phrase.text[1:] + ".")
 
 
-def _mean_logprobs(model, encoder_output, tokenizer, sequences: list[list[int]], num_frames: int,
-                   batch_size: int) -> list[float]:
+def phrase_logprobs(model, encoder_output, tokenizer, dictionary: Dictionary, num_frames: int,
+                    batch_size: int = 8) -> list[float]:
+    """Mean token log-probability of every phrase of ``dictionary`` (its order) on one encoder output.
+
+    ``model`` is the ``ctranslate2.models.Whisper``; the encoder output is repeated, not recomputed,
+    ``batch_size`` times per call. On an encoded silence this is the phrases' prior.
+    """
     import ctranslate2
 
+    sequences = [phrase_tokens(tokenizer, p) for p in dictionary.phrases]
     encoded = np.asarray(encoder_output)
     start = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
     out: list[float] = []
@@ -91,23 +98,13 @@ def score_phrases(
 ) -> list[PhraseScore]:
     """Every phrase of ``dictionary`` scored on one encoder output, best first.
 
-    ``model`` is the ``ctranslate2.models.Whisper``; ``prior`` the phrases' scores on silence (same
-    order as ``dictionary.phrases``, from :func:`phrase_priors`). The encoder output is repeated, not
-    recomputed, ``batch_size`` times per call.
+    ``prior`` is :func:`phrase_logprobs` on an encoded silence (same phrase order).
     """
-    sequences = [phrase_tokens(tokenizer, p) for p in dictionary.phrases]
-    raw = _mean_logprobs(model, encoder_output, tokenizer, sequences, num_frames, batch_size)
+    raw = phrase_logprobs(model, encoder_output, tokenizer, dictionary, num_frames, batch_size)
     prior = list(prior) if prior is not None else [0.0] * len(raw)
     scores = [PhraseScore(p, dictionary, lp - prior_weight * pr) for p, lp, pr in zip(dictionary.phrases, raw, prior)]
     scores.sort(key=lambda s: s.logprob, reverse=True)
     return scores
-
-
-def phrase_priors(model, encoder_output, tokenizer, dictionary: Dictionary, num_frames: int,
-                  batch_size: int = 8) -> list[float]:
-    """Each phrase's mean token log-probability on an encoded silence: what the decoder expects anyway."""
-    sequences = [phrase_tokens(tokenizer, p) for p in dictionary.phrases]
-    return _mean_logprobs(model, encoder_output, tokenizer, sequences, num_frames, batch_size)
 
 
 def class_posteriors(scores: Sequence[PhraseScore], temperature: float) -> dict[str, float]:
