@@ -29,16 +29,17 @@ def _digest(folder: Path) -> str:
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("corpus")
-    mc.make_corpus(out, seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES)
+    mc.make_corpus(out, seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
     return out
 
 
 def test_manifest_counts_and_format(tiny: Path) -> None:
     rows = mc.read_manifest(tiny / "manifest.tsv")
-    assert len(rows) == 2 * (9 * 1 + 2) * len(NOISES)
+    assert len(rows) == 2 * (9 * 1 + 2 + 1) * len(NOISES)
     assert list(rows[0]) == list(mc.MANIFEST_COLUMNS)
     assert {r["class"] for r in rows} == set(mc.MOTION_ACTIONS) | {"none"}
-    assert sum(r["class"] == "none" for r in rows) == 2 * 2 * len(NOISES)
+    assert sum(r["class"] == "none" for r in rows) == 2 * (2 + 1) * len(NOISES)
+    assert sum(r["utt"].startswith(("en/near_", "es/near_")) for r in rows) == 2 * len(NOISES)
     for r in rows[:: len(NOISES)]:
         with wave.open(str(tiny / r["path"]), "rb") as w:
             assert (w.getframerate(), w.getnchannels(), w.getsampwidth()) == (16_000, 1, 2)
@@ -46,10 +47,20 @@ def test_manifest_counts_and_format(tiny: Path) -> None:
 
 
 def test_deterministic_for_a_seed(tiny: Path, tmp_path: Path) -> None:
-    mc.make_corpus(tmp_path / "again", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES)
+    mc.make_corpus(tmp_path / "again", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
     assert _digest(tmp_path / "again") == _digest(tiny)
-    mc.make_corpus(tmp_path / "other", seed=8, langs=("en", "es"), takes=1, ood=2, noises=NOISES)
+    mc.make_corpus(tmp_path / "other", seed=8, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
     assert _digest(tmp_path / "other") != _digest(tiny)
+
+
+def test_near_commands_leave_the_rest_of_a_seed_unchanged(tiny: Path, tmp_path: Path) -> None:
+    """Benchmark caches are keyed by file: adding near-commands must not change any other file."""
+    mc.make_corpus(tmp_path / "without", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=0)
+    without = mc.read_manifest(tmp_path / "without" / "manifest.tsv")
+    rest = [r for r in mc.read_manifest(tiny / "manifest.tsv") if "/near_" not in r["utt"]]
+    assert rest == without
+    for r in without:
+        assert (tmp_path / "without" / r["path"]).read_bytes() == (tiny / r["path"]).read_bytes(), r["path"]
 
 
 def _pair(tiny: Path, label: str, utt: str = "go_right_00", lang: str = "en") -> tuple[np.ndarray, np.ndarray]:

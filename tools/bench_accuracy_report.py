@@ -201,7 +201,7 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
 SCORED_GRID = {
     ("evidence", "min_class_gap"): (0.25, 0.5, 0.75, 1.0),
     ("transcript", "confident_logprob"): (-0.6, -1.0, -1.5),
-    ("transcript", "confident_max_distance"): (0.3, 0.4, 0.5, 0.6, 1.0),
+    ("transcript", "confident_max_distance"): (0.3, 0.4, 0.45, 0.5, 0.6, 0.7, 1.0),
     ("transcript", "min_phrase_score"): (-9.0, -1.0, -0.5, 0.0),
     ("transcript", "agree_max_distance"): (0.3, 0.5),
 }

@@ -2,7 +2,8 @@
 
 Per language (en, es): 9 classes x N takes (the dictionary's phrases in turn, voices, speeds and
 pitches varied; English is also read by Spanish voices, as the paper's speakers were Spanish), plus
-the out-of-domain sentences of ``tools/corpus_sentences.toml`` (right answer: no action). Every
+the out-of-domain sentences and near-commands ("sube el volumen") of ``tools/corpus_sentences.toml``
+(right answer: no action). Every
 utterance is written clean ("raw"), with the paper's additive uniform noise U(-0.05, 0.05) and
 U(-0.15, 0.15) on the [-1, 1] signal, and mixed with babble (several espeak talkers) and a propeller
 hum (sox harmonics + brown noise with tremolo) at 20, 10 and 5 dB SNR. Output: 16 kHz mono 16-bit
@@ -146,58 +147,80 @@ def plan(lang: str, takes: int, ood: int, rng: np.random.Generator) -> list[Utte
                 voice=voices[(k + ci) % len(voices)], speed_wpm=int(rng.integers(*SPEED_WPM)),
                 pitch=int(rng.integers(*PITCH)), split="dev" if k % 3 == 0 else "test",
             ))
-    sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["ood"][:ood]
-    for i, text in enumerate(sentences):
-        out.append(Utterance(
-            utt=f"none_{i:02d}", lang=lang, action="none", text=text, voice=voices[i % len(voices)],
-            speed_wpm=int(rng.integers(*SPEED_WPM)), pitch=int(rng.integers(*PITCH)),
-            split="dev" if i % 3 == 0 else "test",
-        ))
+    out += plan_sentences(lang, "ood", "none", ood, rng)
     return out
+
+
+def plan_sentences(lang: str, kind: str, prefix: str, count: int, rng: np.random.Generator) -> list[Utterance]:
+    """The first ``count`` sentences of ``corpus_sentences.toml`` [lang].kind; right answer: no action."""
+    voices = VOICES[lang]
+    sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang].get(kind, [])[:count]
+    return [Utterance(
+        utt=f"{prefix}_{i:02d}", lang=lang, action="none", text=text, voice=voices[i % len(voices)],
+        speed_wpm=int(rng.integers(*SPEED_WPM)), pitch=int(rng.integers(*PITCH)),
+        split="dev" if i % 3 == 0 else "test",
+    ) for i, text in enumerate(sentences)]
 
 
 def noise_label(noise: str, snr: float | None) -> str:
     return noise if snr is None else f"{noise}{snr:g}"
 
 
+def _write_part(out: Path, lang: str, utterances: list[Utterance], noises: tuple[tuple[str, float | None], ...],
+                rng: np.random.Generator, workers: int) -> list[dict[str, str]]:
+    """Synthesise, pad and noise ``utterances``; write their WAVs; their manifest rows."""
+    rows: list[dict[str, str]] = []
+    if not utterances:
+        return rows
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        clean = list(pool.map(lambda u: synthesise(u.text, u.voice, u.speed_wpm, u.pitch), utterances))
+    sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["babble"]
+    other = VOICES["es" if lang == "en" else "en"]
+    need_babble = any(n == "babble" for n, _ in noises)
+    babble = babble_track(sentences, VOICES[lang][1::2] + other[:1], 30.0, rng) if need_babble else None
+    hum = propeller_hum(30.0) if any(n == "hum" for n, _ in noises) else None
+    for u, speech in zip(utterances, clean):
+        speech = speech / (float(np.max(np.abs(speech))) + 1e-9) * SPEECH_PEAK
+        lead, trail = int(LEAD_SILENCE_S * SAMPLE_RATE), int(TRAIL_SILENCE_S * SAMPLE_RATE)
+        padded = np.concatenate([np.zeros(lead, np.float32), speech, np.zeros(trail, np.float32)])
+        span = slice(lead, lead + speech.size)
+        for noise, snr in noises:
+            if noise == "raw":
+                signal = padded
+            elif noise.startswith("u"):
+                amp = float(noise[1:])
+                signal = np.clip(padded + rng.uniform(-amp, amp, padded.size), -1.0, 1.0)
+            else:
+                track = babble if noise == "babble" else hum
+                start = int(rng.integers(0, track.size - padded.size))
+                signal = mix_at_snr(padded, span, track[start:start + padded.size], float(snr))
+            label = noise_label(noise, snr)
+            rel = Path(lang) / label / f"{u.utt}.wav"
+            write_wav(out / rel, signal)
+            rows.append({
+                "path": str(rel), "lang": lang, "class": u.action, "noise": noise,
+                "snr": "-" if snr is None else f"{snr:g}", "voice": f"{u.voice} s{u.speed_wpm} p{u.pitch}",
+                "text": u.text, "split": u.split, "utt": f"{lang}/{u.utt}",
+            })
+    return rows
+
+
 def make_corpus(out: Path, seed: int = 1, langs: tuple[str, ...] = ("en", "es"), takes: int = 15,
                 ood: int = 24, noises: tuple[tuple[str, float | None], ...] = NOISES,
-                workers: int = 2) -> Path:
-    """Write the corpus under ``out``; returns the manifest path."""
+                workers: int = 2, near: int = 24) -> Path:
+    """Write the corpus under ``out``; returns the manifest path.
+
+    The near-commands have their own random stream (seeded by ``[seed, 2]``), so adding them left
+    every command and out-of-domain file of a seed exactly as it was.
+    """
     rng = np.random.default_rng(seed)
     rows: list[dict[str, str]] = []
     for lang in langs:
-        utterances = plan(lang, takes, ood, rng)
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            clean = list(pool.map(lambda u: synthesise(u.text, u.voice, u.speed_wpm, u.pitch), utterances))
-        sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["babble"]
-        other = VOICES["es" if lang == "en" else "en"]
-        need_babble = any(n == "babble" for n, _ in noises)
-        babble = babble_track(sentences, VOICES[lang][1::2] + other[:1], 30.0, rng) if need_babble else None
-        hum = propeller_hum(30.0) if any(n == "hum" for n, _ in noises) else None
-        for u, speech in zip(utterances, clean):
-            speech = speech / (float(np.max(np.abs(speech))) + 1e-9) * SPEECH_PEAK
-            lead, trail = int(LEAD_SILENCE_S * SAMPLE_RATE), int(TRAIL_SILENCE_S * SAMPLE_RATE)
-            padded = np.concatenate([np.zeros(lead, np.float32), speech, np.zeros(trail, np.float32)])
-            span = slice(lead, lead + speech.size)
-            for noise, snr in noises:
-                if noise == "raw":
-                    signal = padded
-                elif noise.startswith("u"):
-                    amp = float(noise[1:])
-                    signal = np.clip(padded + rng.uniform(-amp, amp, padded.size), -1.0, 1.0)
-                else:
-                    track = babble if noise == "babble" else hum
-                    start = int(rng.integers(0, track.size - padded.size))
-                    signal = mix_at_snr(padded, span, track[start:start + padded.size], float(snr))
-                label = noise_label(noise, snr)
-                rel = Path(lang) / label / f"{u.utt}.wav"
-                write_wav(out / rel, signal)
-                rows.append({
-                    "path": str(rel), "lang": lang, "class": u.action, "noise": noise,
-                    "snr": "-" if snr is None else f"{snr:g}", "voice": f"{u.voice} s{u.speed_wpm} p{u.pitch}",
-                    "text": u.text, "split": u.split, "utt": f"{lang}/{u.utt}",
-                })
+        rows += _write_part(out, lang, plan(lang, takes, ood, rng), noises, rng, workers)
+    near_rng = np.random.default_rng([seed, 2])
+    for lang in langs:
+        rows += _write_part(out, lang, plan_sentences(lang, "near", "near", near, near_rng), noises, near_rng,
+                            workers)
     manifest = out / "manifest.tsv"
     with manifest.open("w", encoding="utf-8") as f:
         f.write("\t".join(MANIFEST_COLUMNS) + "\n")
@@ -230,11 +253,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--langs", default="en,es")
     p.add_argument("--takes", type=int, default=15, help="takes per class and language (paper: 15)")
     p.add_argument("--ood", type=int, default=24, help="out-of-domain sentences per language")
+    p.add_argument("--near", type=int, default=24, help="near-command sentences per language (not commands)")
     p.add_argument("--noises", default=",".join(noise_label(*n) for n in NOISES))
     args = p.parse_args(argv)
     t0 = time.monotonic()
     manifest = make_corpus(args.out, args.seed, tuple(args.langs.split(",")), args.takes, args.ood,
-                           parse_noises(args.noises))
+                           parse_noises(args.noises), near=args.near)
     n = len(read_manifest(manifest))
     print(f"{n} utterances -> {manifest} in {time.monotonic() - t0:.1f} s")
     return 0
