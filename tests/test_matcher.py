@@ -216,6 +216,15 @@ def test_scored_phrase_vetoed_by_a_confident_other_transcript(name: str) -> None
     assert matcher.decide(_scored("stop", "Alitet", -1.6, 1.0), [EN]).action == "stop"
 
 
+@pytest.mark.parametrize(("phrase", "transcript"), [("left", "Left luggage"), ("hold", "Hold the door"),
+                                                  ("sube", "Sube el volumen")])
+def test_near_command_heard_clearly_does_nothing(phrase: str, transcript: str) -> None:
+    """A command word inside other words (tools/corpus_sentences.toml "near") is not the command."""
+    dictionary = ES if phrase == "sube" else EN
+    decision = get_matcher("phonetic").decide(_scored(phrase, transcript, -0.4, 1.0), [dictionary])
+    assert decision.action is None and f"is not '{phrase}'" in decision.reason
+
+
 def test_weak_scored_phrase_needs_an_agreeing_transcript() -> None:
     matcher = get_matcher("phonetic")
     assert matcher.decide(_scored("go right", "Go rite", -1.5, -1.0), [EN]).action == "go_right"
