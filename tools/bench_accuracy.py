@@ -16,6 +16,7 @@ voices, latency and real-time factor, and confusion matrices, into docs/bench/ac
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 import time
@@ -60,6 +61,11 @@ class Item:
     text: str
 
 
+def is_near(item: Item) -> bool:
+    """A near-command of the corpus (tools/corpus_sentences.toml "near"): not a command, right answer none."""
+    return item.path.name.startswith("near_")
+
+
 def corpus_items(corpus: Path) -> list[Item]:
     rows = make_corpus.read_manifest(corpus / "manifest.tsv")
     return [
@@ -96,6 +102,38 @@ def save_cache(engine: str, items: dict[str, dict], config: dict) -> None:
     tmp.replace(cache_path(engine))
 
 
+def file_digest(path: Path) -> str:
+    """Short SHA-1 of a WAV: a cached recognition is only reused for the very same audio."""
+    return hashlib.sha1(path.read_bytes()).hexdigest()[:16]
+
+
+def drop_stale(cache: dict[str, dict], items: list[Item]) -> list[str]:
+    """Remove cached recognitions whose WAV changed since (another seed, dictionary or corpus tool).
+
+    Records from before digests were kept (no "sha1") are trusted and given the file's digest.
+    """
+    stale = []
+    for it in items:
+        rec = cache.get(it.key)
+        if rec is None or not it.path.is_file():
+            continue
+        digest = file_digest(it.path)
+        if rec.setdefault("sha1", digest) != digest:
+            stale.append(it.key)
+            del cache[it.key]
+    return stale
+
+
+def fresh_cache(engine: str, items: list[Item]) -> dict[str, dict]:
+    """The engine's cached recognitions of ``items`` whose WAV is unchanged (stale ones are reported)."""
+    cache = load_cache(engine)
+    stale = drop_stale(cache, items)
+    if stale:
+        print(f"{engine}: skipping {len(stale)} cached recognitions of files that changed since "
+              f"(e.g. {stale[0]}); run recognise again", file=sys.stderr)
+    return cache
+
+
 def recognise_one(recognizer, item: Item) -> dict:
     """Stream one WAV in 100 ms chunks; latency counts from the end of the audio, as if live."""
     samples = make_corpus.read_wav(item.path)
@@ -122,13 +160,16 @@ def recognise_one(recognizer, item: Item) -> dict:
         "hypotheses": [[h.text, h.confidence, h.score] for h in rec.hypotheses],
         "engine": rec.engine, "lang": rec.lang, "extra": dict(rec.extra), "transcript": rec.transcript,
         "audio_s": audio_s,
-        "latency_s": clock - n_chunks * CHUNK_S, "busy_s": busy,
+        "latency_s": clock - n_chunks * CHUNK_S, "busy_s": busy, "sha1": file_digest(item.path),
     }
 
 
 def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, every: int) -> None:
     for engine in engines:
         cache = load_cache(engine)
+        stale = drop_stale(cache, items)
+        if stale:
+            print(f"{engine}: {len(stale)} cached recognitions are of files that changed since; redone", flush=True)
         todo = [it for it in items[::every] if it.key not in cache]
         todo = [it for it in todo if bench_engines.supports(engine, it.lang)]
         # A fixed pseudo-random order: a run stopped early (--limit-s) still samples every cell evenly.

@@ -34,7 +34,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--min-confidence", default="", help="comma-separated values for the last engine")
     args = p.parse_args(argv)
     items = bench.real_items(bench.SHARED / "speech") + bench.corpus_items(args.corpus)
-    caches = {e: bench.load_cache(e) for e in args.engines}
+    caches = {e: bench.fresh_cache(e, items) for e in args.engines}
     both = [it for it in items if it.split in ("test", "real") and all(it.key in c for c in caches.values())]
     dictionaries = {lang: load_language(lang) for lang in ("en", "es")}
     decided = {e: bench.decide_all(e, args.matcher, both, caches[e], dictionaries) for e in args.engines}

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 
 from bench_accuracy import (
-    BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, load_cache, recognition, score,
+    BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, fresh_cache, is_near, recognition,
+    score,
 )
 from gcs_voice.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
 from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
@@ -77,10 +78,16 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
     lines: list[str] = []
     items = [it for it in items if it.split in REPORT_SPLITS]
     summary: list[str] = []
+    previous = _previous_sections()
     for engine in engines:
-        cache = load_cache(engine)
+        cache = fresh_cache(engine, items)
         if not cache:
-            lines += [f"### {engine}", "", "Not run (no cached recognitions).", ""]
+            if engine in previous:  # measured earlier, caches gone: keep what was written then
+                section, timing_row = previous[engine]
+                lines += section
+                summary += [timing_row] if timing_row else []
+            else:
+                lines += [f"### {engine}", "", "Not run (no cached recognitions).", ""]
             continue
         cached = [it for it in items if it.key in cache]
         decided = {m: decide_all(engine, m, cached, cache, dictionaries) for m in matchers}
@@ -91,21 +98,22 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
         langs = [lang for lang in LANGS if any(it.lang == lang and it.split == "test" for it in cached)]
         lines += [f"### {engine}", ""]
         lines += ["Commands: **accuracy** / wrong class / rejected, % of commands (test split). "
-                  "OOD: out-of-domain utterances acted on, % (all noises).", ""]
+                  "OOD: out-of-domain sentences acted on; near-commands: everyday phrases built on a "
+                  "command word (\"left luggage\", \"sube el volumen\") acted on; % over the table's noises.", ""]
         for noises, title in ((PAPER_NOISES, "paper's noise (uniform on [-1, 1])"),
                               (MIXED_NOISES, "babble and propeller hum, SNR in dB")):
             for lang in langs:
                 lines.append(f"{lang}, {title}:")
                 lines.append("")
-                lines.append("| matcher | " + " | ".join(noises) + " | OOD false accepts |")
-                lines.append("|---" * (len(noises) + 2) + "|")
+                lines.append("| matcher | " + " | ".join(noises) + " | OOD false accepts | near-commands acted on |")
+                lines.append("|---" * (len(noises) + 3) + "|")
                 for m, dec in decided.items():
                     cells = [_cell(score(cached, dec, lang=lang, noise=n, split="test")) for n in noises]
-                    fa_n = Score()
+                    fa_n, near_n = Score(), Score()
                     for it in cached:
                         if it.lang == lang and it.split == "test" and it.noise in noises and it.key in dec:
-                            fa_n.add(it.truth, dec[it.key])
-                    lines.append(f"| {m} | " + " | ".join(cells) + f" | {_fa(fa_n)} |")
+                            (near_n if is_near(it) else fa_n).add(it.truth, dec[it.key])
+                    lines.append(f"| {m} | " + " | ".join(cells) + f" | {_fa(fa_n)} | {_fa(near_n)} |")
                 lines.append("")
         real = [it for it in cached if it.split == "real"]
         if real:
@@ -147,6 +155,33 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
     print(f"wrote {DOC}")
 
 
+def _previous_sections() -> dict[str, tuple[list[str], str]]:
+    """engine -> (its "### engine" section, its Timing row) in the generated part of the current DOC.
+
+    Caches are local files: a report run without one engine's cache keeps that engine's results
+    as last written (with their date in the summary) instead of dropping them.
+    """
+    if not DOC.is_file():
+        return {}
+    _, _, rest = DOC.read_text(encoding="utf-8").partition(BEGIN)
+    block = rest.partition(END)[0].splitlines()
+    out: dict[str, tuple[list[str], str]] = {}
+    current: str | None = None
+    for line in block:
+        if line.startswith("### "):
+            current = line[4:].strip()
+            out[current] = ([], "")
+        elif line.startswith("## "):
+            current = None
+        if current is not None:
+            out[current][0].append(line)
+    for line in block:
+        for engine, (section, _) in out.items():
+            if line.startswith(f"| {engine} | "):
+                out[engine] = (section, line)
+    return {e: (sec, row) for e, (sec, row) in out.items() if not any("Not run" in x for x in sec)}
+
+
 def _sweep_scores(ranked, max_d: float, margin: float) -> tuple[Score, Score]:
     """Decisions under one (max_distance, min_margin) from precomputed rankings: dev and real scores."""
     dev, real = Score(), Score()
@@ -169,7 +204,7 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
             for m in matchers:
                 tune_scored(engine, m, items, CACHE_DIR / "tune")
             continue
-        cache = load_cache(engine)
+        cache = fresh_cache(engine, items)
         cached = [it for it in items if it.key in cache]
         if not cached:
             continue
@@ -224,7 +259,7 @@ def tune_scored(engine: str, matcher_name: str, items: list[Item], workdir: Path
     from gcs_voice.matcher.thresholds import THRESHOLDS_PATH
 
     dictionaries = {lang: load_language(lang) for lang in LANGS}
-    cache = load_cache(engine)
+    cache = fresh_cache(engine, items)
     cached = [(it, recognition(engine, cache[it.key])) for it in items
               if it.split in ("dev", "real") and it.key in cache]
     base = tomllib.loads(THRESHOLDS_PATH.read_text(encoding="utf-8"))
