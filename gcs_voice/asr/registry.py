@@ -83,7 +83,7 @@ def default_engine(lang: str) -> str:
     """Vosk when a model for ``lang`` is found; else Whisper when a model is found; else Sphinx (English).
 
     The order is the accuracy benchmark's (docs/bench/accuracy.md): Whisper base hears far more
-    commands right than PocketSphinx (real voices 67/75 vs 33/75) at ~1 s per command instead of
+    commands right than PocketSphinx (real voices 66/75 vs 33/75) at ~1 s per command instead of
     ~0.1 s; PocketSphinx needs nothing beyond pip. ``lang`` "auto" needs a multilingual engine: Whisper.
     """
     from gcs_voice.asr import models
