@@ -1,6 +1,6 @@
 """``gcs-voice`` entry point: parses flags and hands over to one command module; no logic here.
 
-``gcs-voice [fly flags]`` flies (the default command); ``gcs-voice recognize|demo|plot ...`` run the
+``gcs-voice [fly flags]`` flies (the default command); ``gcs-voice recognize|demo|plot|download ...`` run the
 other commands. User mistakes (GcsVoiceError) end in one line on stderr and exit status 2.
 """
 
@@ -19,6 +19,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "recognize": ("recognize", "recognise command words in WAV files (or stdin PCM) and print the decisions"),
     "demo": ("demo", "start the bundled simulator and fly a scripted spoken sequence"),
     "plot": ("plot", "draw a flight from a .tlog as a PNG"),
+    "download": ("download", "fetch a speech model once (recognising never downloads)"),
 }
 DEFAULT_COMMAND = "fly"
 

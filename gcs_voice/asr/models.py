@@ -1,9 +1,10 @@
-"""Where speech models are: resolved from a path, a cache folder or a language, never downloaded.
+"""Where speech models are: resolved from a path, a cache folder or a language, never downloaded here.
 
 Vosk models are found the way ``vosk.Model(lang=...)`` finds them (``vosk/__init__.py``
 ``get_model_by_lang``: ``VOSK_MODEL_PATH``, ``/usr/share/vosk``, ``~/AppData/Local/vosk``,
 ``~/.cache/vosk``, folder names ``vosk-model(-small)?-<lang>``), but without its network fallback
-or ``sys.exit``: a missing model is a ModelError that tells the user the download command.
+or ``sys.exit``: a missing model is a ModelError that tells the user the download command
+(``gcs-voice download vosk``, gcs_voice/asr/download.py).
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ __all__ = [
     "VOSK_DOWNLOAD_URL",
     "vosk_model_dirs",
     "find_vosk_model",
+    "vosk_model_in",
     "check_vosk_model_dir",
     "vosk_model_hint",
     "find_whisper_model",
@@ -70,24 +72,33 @@ def _packaged_vosk_model(lang: str) -> Path | None:
     return None
 
 
+def vosk_model_in(directory: Path, lang: str) -> Path | None:
+    """The first ``vosk-model(-small)?-<lang>*`` folder in ``directory`` (the vosk package's pattern)."""
+    if not directory.is_dir():
+        return None
+    pattern = re.compile(rf"vosk-model(-small)?-{re.escape(lang)}")
+    for name in sorted(os.listdir(directory)):
+        candidate = directory / name
+        if pattern.match(name) and candidate.is_dir():
+            return candidate
+    return None
+
+
 def find_vosk_model(lang: str) -> Path | None:
     """The first ``vosk-model(-small)?-<lang>*`` folder in :func:`vosk_model_dirs`, else a packaged model."""
-    pattern = re.compile(rf"vosk-model(-small)?-{re.escape(lang)}")
     for directory in vosk_model_dirs():
-        if not directory.is_dir():
-            continue
-        for name in sorted(os.listdir(directory)):
-            candidate = directory / name
-            if pattern.match(name) and candidate.is_dir():
-                return candidate
+        found = vosk_model_in(directory, lang)
+        if found is not None:
+            return found
     return _packaged_vosk_model(lang)
 
 
 def vosk_model_hint(lang: str) -> str:
     """One sentence telling a user how to get a Vosk model for ``lang``."""
     name = VOSK_SUGGESTED.get(lang, f"vosk-model-small-{lang}-<version>")
-    return (f"no Vosk model for {lang!r}: download {VOSK_DOWNLOAD_URL}/{name}.zip and unzip it into "
-            f"~/.cache/vosk/ (or set VOSK_MODEL_PATH, or pass --model PATH)")
+    return (f"no Vosk model for {lang!r}: run `gcs-voice download vosk --lang {lang}` (needs internet), or "
+            f"download {VOSK_DOWNLOAD_URL}/{name}.zip and unzip it into ~/.cache/vosk/ (or set "
+            f"VOSK_MODEL_PATH, or pass --model PATH)")
 
 
 def _looks_like_ct2_model(path: Path) -> bool:
@@ -134,7 +145,7 @@ def _hf_cached(size: str) -> bool:
 
 def whisper_model_hint(model: str) -> str:
     return (f"whisper model {model!r} is not on this machine; download it once with "
-            f"`python -c \"import faster_whisper; faster_whisper.WhisperModel('{model}')\"` "
+            f"`gcs-voice download whisper --size {model}` "
             f"(needs internet) or pass --model PATH to a faster-whisper model folder")
 
 
