@@ -46,10 +46,10 @@ def main(argv: list[str] | None = None) -> int:
     counts = Counter()
     for it in items:
         audio = bench_accuracy.make_corpus.read_wav(it.path)
-        encoded, frames = recognizer._encode_short(audio)
+        encoded, frames = recognizer.encode_short(audio)
         detected, _, _ = recognizer.detect(encoded, None)
-        best = {lang: score_phrases(recognizer.model.model, encoded, recognizer._tokenizer(lang),
-                                    recognizer.dictionaries[lang], frames, recognizer._priors(lang), weight)[0]
+        best = {lang: score_phrases(recognizer.model.model, encoded, recognizer.tokenizer(lang),
+                                    recognizer.dictionaries[lang], frames, recognizer.phrase_priors(lang), weight)[0]
                 for lang in recognizer.languages}
         by_score = max(best, key=lambda lang: best[lang].logprob)
         counts["utterances"] += 1

@@ -35,8 +35,8 @@ CACHE = REPO / "out" / "bench" / "score-raw-logprobs.json"
 def raw_scores(recognizer, item) -> list[float]:
     """Mean token log-probability of every phrase of the item's language (no prior subtracted)."""
     samples = bench_accuracy.make_corpus.read_wav(item.path).astype(np.float32)
-    encoded, frames = recognizer._encode_short(samples)
-    return phrase_logprobs(recognizer.model.model, encoded, recognizer._tokenizer(item.lang),
+    encoded, frames = recognizer.encode_short(samples)
+    return phrase_logprobs(recognizer.model.model, encoded, recognizer.tokenizer(item.lang),
                            recognizer.dictionaries[item.lang], frames)
 
 
@@ -61,7 +61,7 @@ def main(argv: list[str] | None = None) -> int:
             continue
         if it.lang not in recognizers:
             recognizers[it.lang] = bench_engines.load("whisper-score", it.lang)
-            cache[f"prior/{it.lang}"] = recognizers[it.lang]._priors(it.lang)
+            cache[f"prior/{it.lang}"] = recognizers[it.lang].phrase_priors(it.lang)
         cache[it.key] = raw_scores(recognizers[it.lang], it)
         if n % 25 == 0:
             CACHE.parent.mkdir(parents=True, exist_ok=True)

@@ -80,7 +80,7 @@ class WhisperRecognizer:
         return WhisperStream(self, fixed)
 
     # -- decoding ---------------------------------------------------------------------------------
-    def _tokenizer(self, lang: str):
+    def tokenizer(self, lang: str):
         from faster_whisper.tokenizer import Tokenizer
 
         return Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe", language=lang)
@@ -92,7 +92,7 @@ class WhisperRecognizer:
         recite it ("turn right, go back,") on silence.
         """
         if lang not in self._prompts:
-            tokenizer = self._tokenizer(lang)
+            tokenizer = self.tokenizer(lang)
             previous: list[int] = []
             if self.mode == "grammar" and self.settings.get("prompt_with_dictionary", True):
                 words = ", ".join(self.dictionaries[lang].vocabulary()) + "."
@@ -123,7 +123,7 @@ class WhisperRecognizer:
         encoder_output = self.model.encode(pad_or_trim(features))
         lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
         prompt = self._prompt(lang)
-        tokenizer = self._tokenizer(lang)
+        tokenizer = self.tokenizer(lang)
         s = self.settings
         n_best = max(1, int(s.get("beam_size", 5)))
         max_length = len(prompt) + int(s.get("max_new_tokens", 16))
@@ -173,19 +173,20 @@ class WhisperRecognizer:
         return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra)
 
     # -- mode "score" -----------------------------------------------------------------------------
-    def _encode_short(self, audio: np.ndarray):
-        """Encoder output of the audio plus ``score_pad_s`` of silence (not a 30 s window)."""
+    def encode_short(self, audio: np.ndarray):
+        """Encoder output of the audio plus ``score_pad_s`` of silence (not a 30 s window), and its
+        frame count: what scoring mode scores phrases on (public for the tools that sweep it)."""
         pad = np.zeros(int(float(self.settings.get("score_pad_s", 1.0)) * SAMPLE_RATE), dtype=np.float32)
         features = self.model.feature_extractor(np.concatenate([audio[: 28 * SAMPLE_RATE], pad]))[:, :-1]
         return self.model.encode(features), features.shape[-1]
 
-    def _priors(self, lang: str) -> list[float]:
+    def phrase_priors(self, lang: str) -> list[float]:
         """Every phrase of ``lang`` scored on one second of silence (once per language)."""
         from gcs_voice.asr.whisper_score import phrase_logprobs
 
         if lang not in self._phrase_priors:
-            encoded, frames = self._encode_short(np.zeros(SAMPLE_RATE, dtype=np.float32))
-            self._phrase_priors[lang] = phrase_logprobs(self.model.model, encoded, self._tokenizer(lang),
+            encoded, frames = self.encode_short(np.zeros(SAMPLE_RATE, dtype=np.float32))
+            self._phrase_priors[lang] = phrase_logprobs(self.model.model, encoded, self.tokenizer(lang),
                                                         self.dictionaries[lang], frames,
                                                         int(self.settings.get("score_batch_size", 8)))
         return self._phrase_priors[lang]
@@ -195,20 +196,20 @@ class WhisperRecognizer:
         from gcs_voice.asr.whisper_score import class_gap, class_posteriors, collapse_repeats, score_phrases
 
         s = self.settings
-        encoded, frames = self._encode_short(audio)
+        encoded, frames = self.encode_short(audio)
         lang, lang_prob, known_mass = self.detect(encoded, fixed_lang)
         weight, batch = float(s.get("score_prior_weight", 0.6)), int(s.get("score_batch_size", 8))
         # --lang auto: every loaded language is scored and the best phrase picks the language (Whisper's
         # language detection on a short window calls espeak-ng Spanish English; dev raw: language right
         # 77/90 vs 74/90, class right 64/76 vs 55/76, at twice the scoring time).
         candidates = [lang] if fixed_lang is not None else list(self.languages)
-        scored = {code: score_phrases(self.model.model, encoded, self._tokenizer(code), self.dictionaries[code],
-                                      frames, self._priors(code), weight, batch) for code in candidates}
+        scored = {code: score_phrases(self.model.model, encoded, self.tokenizer(code), self.dictionaries[code],
+                                      frames, self.phrase_priors(code), weight, batch) for code in candidates}
         lang = max(candidates, key=lambda code: scored[code][0].logprob if scored[code] else -math.inf)
         if fixed_lang is None:
             _, lang_prob, _ = self.detect(encoded, lang)  # the chosen language's detection probability
         scores = scored[lang]
-        tokenizer = self._tokenizer(lang)
+        tokenizer = self.tokenizer(lang)
         prompt = self._prompt(lang)  # mode "score": no dictionary prompt
         free = self.model.model.generate(
             encoded, [prompt], max_length=len(prompt) + int(s.get("max_new_tokens", 16)),
