@@ -56,21 +56,24 @@ def main(argv: list[str] | None = None) -> int:
         items = items[: args.limit]
     cache = json.loads(CACHE.read_text()) if CACHE.is_file() else {}
     recognizers = {}
+    from gcs_voice.dictionary import load_language
+
+    # a changed WAV or dictionary is scored again: both are in the cache keys
+    tag = {lang: f"{lang}@{bench_accuracy.file_digest(load_language(lang).path)}" for lang in {it.lang for it in items}}
+    keys = {it.key: f"{it.key}@{bench_accuracy.file_digest(it.path)}@{tag[it.lang]}" for it in items}
     for n, it in enumerate(items, 1):
-        if it.key in cache:
+        if keys[it.key] in cache:
             continue
         if it.lang not in recognizers:
             recognizers[it.lang] = bench_engines.load("whisper-score", it.lang)
-            cache[f"prior/{it.lang}"] = recognizers[it.lang].phrase_priors(it.lang)
-        cache[it.key] = raw_scores(recognizers[it.lang], it)
+            cache[f"prior/{tag[it.lang]}"] = recognizers[it.lang].phrase_priors(it.lang)
+        cache[keys[it.key]] = raw_scores(recognizers[it.lang], it)
         if n % 25 == 0:
             CACHE.parent.mkdir(parents=True, exist_ok=True)
             CACHE.write_text(json.dumps(cache))
             print(f"{n}/{len(items)}", flush=True)
     CACHE.parent.mkdir(parents=True, exist_ok=True)
     CACHE.write_text(json.dumps(cache))
-    from gcs_voice.dictionary import load_language
-
     actions = {lang: [p.action for p in load_language(lang).phrases] for lang in {it.lang for it in items}}
     cells = sorted({(it.lang, it.noise) for it in items})
     print(f"Closed-set accuracy (%, no rejection), {args.split} split, n per cell in the header\n")
@@ -82,8 +85,8 @@ def main(argv: list[str] | None = None) -> int:
     for w in (float(x) for x in args.weights.split(",")):
         right = defaultdict(int)
         for it in items:
-            prior = np.asarray(cache[f"prior/{it.lang}"])
-            best = int(np.argmax(np.asarray(cache[it.key]) - w * prior))
+            prior = np.asarray(cache[f"prior/{tag[it.lang]}"])
+            best = int(np.argmax(np.asarray(cache[keys[it.key]]) - w * prior))
             right[(it.lang, it.noise)] += actions[it.lang][best] == it.truth
         print(f"| {w:g} | " + " | ".join(f"{100 * right[c] / counts[c]:.1f}" for c in cells) + " |")
     return 0
