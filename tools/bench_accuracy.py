@@ -129,8 +129,8 @@ def fresh_cache(engine: str, items: list[Item]) -> dict[str, dict]:
     cache = load_cache(engine)
     stale = drop_stale(cache, items)
     if stale:
-        print(f"{engine}: skipping {len(stale)} cached recognitions of files that changed since "
-              f"(e.g. {stale[0]}); run recognise again", file=sys.stderr)
+        print(f"{engine}: ignoring {len(stale)} cached recognitions of files that changed since "
+              f"(e.g. {stale[0]}); recognise does them again", file=sys.stderr)
     return cache
 
 
@@ -166,10 +166,7 @@ def recognise_one(recognizer, item: Item) -> dict:
 
 def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, every: int) -> None:
     for engine in engines:
-        cache = load_cache(engine)
-        stale = drop_stale(cache, items)
-        if stale:
-            print(f"{engine}: {len(stale)} cached recognitions are of files that changed since; redone", flush=True)
+        cache = fresh_cache(engine, items)
         todo = [it for it in items[::every] if it.key not in cache]
         todo = [it for it in todo if bench_engines.supports(engine, it.lang)]
         # A fixed pseudo-random order: a run stopped early (--limit-s) still samples every cell evenly.

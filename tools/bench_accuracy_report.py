@@ -290,3 +290,13 @@ def tune_scored(engine: str, matcher_name: str, items: list[Item], workdir: Path
         print(f"  {'ok ' if ok else 'no '} {' '.join(f'{v:g}' for v in values)} | {dev.pct('right'):5.1f} "
               f"{dev.pct('wrong'):5.1f} {dev.pct('rejected'):5.1f} {dev.pct('false_accept'):5.1f} | "
               f"{real.right}/{real.wrong}/{real.rejected} {real.false_accept}/{real.n_ood}  obj {obj:.1f}")
+    table_path = workdir / f"{engine}-{matcher_name}.tsv"  # every setting, to look any of them up
+    with table_path.open("w", encoding="utf-8") as f:
+        f.write("\t".join(["meets_limits", *(key for _, key in SCORED_GRID), "dev_right", "dev_wrong", "dev_rejected",
+                           "dev_commands", "dev_acted_on_non_commands", "dev_non_commands", "real_right", "real_wrong",
+                           "real_rejected", "real_acted_on_non_commands", "objective"]) + "\n")
+        for ok, obj, values, dev, real in rows:
+            f.write("\t".join(str(x) for x in (ok, *values, dev.right, dev.wrong, dev.rejected, dev.n_cmd,
+                                               dev.false_accept, dev.n_ood, real.right, real.wrong, real.rejected,
+                                               real.false_accept, round(obj, 2))) + "\n")
+    print(f"  every setting: {table_path}")

@@ -22,7 +22,7 @@ import zipfile
 from collections.abc import Callable
 from pathlib import Path
 
-from gcs_voice.asr.models import VOSK_DOWNLOAD_URL, check_vosk_model_dir, vosk_model_in
+from gcs_voice.asr.models import VOSK_DOWNLOAD_URL, WHISPER_SIZES, check_vosk_model_dir, vosk_model_in
 from gcs_voice.errors import ModelError
 
 __all__ = ["vosk_download_dir", "vosk_model_list", "choose_vosk_model", "download_vosk_model", "download_whisper_model"]
@@ -141,12 +141,9 @@ def download_vosk_model(lang: str, dest: str | Path | None = None, base_url: str
     return final
 
 
-
 def download_whisper_model(size: str, progress: Callable[[str], None] | None = None) -> Path:
     """faster-whisper's own download of ``Systran/faster-whisper-<size>`` into the Hugging Face cache,
     where ``--model <size>`` then finds it offline."""
-    from gcs_voice.asr.models import WHISPER_SIZES
-
     if size not in WHISPER_SIZES:
         raise ModelError(f"unknown Whisper size {size!r} (known: {', '.join(WHISPER_SIZES)})")
     say = progress or (lambda line: print(line, file=sys.stderr))
