@@ -18,8 +18,8 @@ from pathlib import Path
 
 import pytest
 
-from gcs_voice.flight_log import Flight, read_flight
-from gcs_voice.session_log import read_session_log
+from gcs_voice.session.flight_log import Flight, read_flight
+from gcs_voice.session.session_log import read_session_log
 
 REPO = Path(__file__).resolve().parent.parent
 DEMO_AUDIO = REPO / "gcs_voice" / "demo_audio"
