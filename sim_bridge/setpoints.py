@@ -12,6 +12,8 @@ from dataclasses import dataclass, replace
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.frames import wrap_pi
+
 __all__ = ["FrameRules", "Setpoint", "SetpointRejected", "decode_setpoint", "TYPE_MASK"]
 
 
@@ -122,7 +124,7 @@ def decode_setpoint(msg: mavlink.MAVLink_set_position_target_local_ned_message, 
         if not _finite(msg.yaw):
             raise SetpointRejected("nan", frame)
         yaw = msg.yaw + yaw_now_rad if (body and rules.body_yaw_relative) else float(msg.yaw)
-        yaw = (yaw + math.pi) % (2.0 * math.pi) - math.pi
+        yaw = wrap_pi(yaw)
     elif yaw_rate_used:
         if not _finite(msg.yaw_rate):
             raise SetpointRejected("nan", frame)

@@ -17,6 +17,7 @@ from typing import Any
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim_bridge.fence import FENCE_BRAKE_ACCEL_M_S2, Fence
+from sim_bridge.frames import wrap_pi
 from sim_bridge.setpoints import Setpoint
 
 __all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]   # Fence re-exported
@@ -68,10 +69,6 @@ class VehicleLimits:
     return_alt_m: float = 15.0
     return_cone_deg: float | None = None    # PX4: return no higher than distance / tan(cone) near home
     return_speed_m_s: float = 5.0
-
-
-def _wrap_pi(angle_rad: float) -> float:
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
 
 
 @dataclass
@@ -206,9 +203,9 @@ class Vehicle:
 
     def set_yaw_target(self, yaw_rad: float) -> None:
         """CONDITION_YAW-style heading change while holding or following."""
-        self._hold.yaw_rad = _wrap_pi(yaw_rad)
+        self._hold.yaw_rad = wrap_pi(yaw_rad)
         if self.setpoint is not None:
-            self.setpoint = self.setpoint.with_yaw(_wrap_pi(yaw_rad))
+            self.setpoint = self.setpoint.with_yaw(wrap_pi(yaw_rad))
 
     # ----------------------------------------------------------------- the loop
     def step(self, dt_s: float) -> list[VehicleEvent]:
@@ -254,10 +251,10 @@ class Vehicle:
     # ----------------------------------------------------------------- behaviours
     def _slew_yaw(self, desired_rad: float, dt_s: float) -> float:
         slew = self.limits.yaw_slew_rad_s
-        error = _wrap_pi(desired_rad - self._yaw_target_rad)
+        error = wrap_pi(desired_rad - self._yaw_target_rad)
         if slew is not None:
             error = max(-slew * dt_s, min(slew * dt_s, error))
-        self._yaw_target_rad = _wrap_pi(self._yaw_target_rad + error)
+        self._yaw_target_rad = wrap_pi(self._yaw_target_rad + error)
         return self._yaw_target_rad
 
     def _hold_target(self, pos: tuple[float, float, float], vel_now: Any) -> Any:

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from gcs_voice.audio import read_wav
+from gcs_voice.audio.sources import read_wav
 
 
 def need(tool: str) -> None:

@@ -7,8 +7,8 @@ from dataclasses import replace
 
 import pytest
 
-from gcs_voice.actions import ActionMapper, UnknownActionError
-from gcs_voice.dictionary import ACTIONS, FLIGHT_ACTIONS
+from gcs_voice.actions.mapper import ActionMapper, UnknownActionError
+from gcs_voice.domain.dictionary import ACTIONS, FLIGHT_ACTIONS
 from gcs_voice.link.state import VehicleState
 from gcs_voice.settings import load_settings
 

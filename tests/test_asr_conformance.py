@@ -11,9 +11,9 @@ import pytest
 
 from gcs_voice.asr.base import SAMPLE_RATE, Recognition, Recognizer, RecognizerStream
 from gcs_voice.asr.registry import ENGINES, available_engines, load_recognizer
-from gcs_voice.audio import pcm_to_chunks
-from gcs_voice.dictionary import load_language
-from gcs_voice.text import normalize_text
+from gcs_voice.audio.sources import pcm_to_chunks
+from gcs_voice.domain.dictionary import load_language
+from gcs_voice.domain.text import normalize_text
 from tests.asr_speech import pcm_of
 
 #: engine -> (language, a phrase espeak-ng says that the engine gets right, expected transcript)

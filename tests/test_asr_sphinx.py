@@ -9,9 +9,9 @@ import logging
 import pytest
 
 from gcs_voice.asr.registry import load_recognizer
-from gcs_voice.dictionary import load_dictionary, load_language
+from gcs_voice.domain.dictionary import load_dictionary, load_language
 from gcs_voice.errors import ModelError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 from tests.asr_speech import pcm_of
 
 pytest.importorskip("pocketsphinx")
@@ -47,8 +47,8 @@ def test_out_of_domain_speech_is_not_forced_into_a_command(grammar, tmp_path, sa
 @pytest.mark.slow
 def test_real_recordings(grammar, real_speech_dir):
     """A few of the real speakers: most commands right, no non-command accepted as one of them."""
-    from gcs_voice.audio import read_wav
-    from gcs_voice.matcher import get_matcher
+    from gcs_voice.audio.sources import read_wav
+    from gcs_voice.understanding import get_matcher
 
     rows = list(csv.DictReader(open(real_speech_dir / "labels.tsv"), delimiter="\t"))
     commands = [r for r in rows if r["class"] != "none"][::5]

@@ -15,7 +15,7 @@ import pytest
 
 from gcs_voice.asr import models
 from gcs_voice.asr.registry import default_engine, load_recognizer
-from gcs_voice.dictionary import load_dictionary, load_language
+from gcs_voice.domain.dictionary import load_dictionary, load_language
 from gcs_voice.errors import ModelError
 from tests.asr_speech import pcm_of
 
@@ -47,7 +47,7 @@ def _recognise(recognizer, pcm, lang="ko"):
 @pytest.mark.parametrize("said,action", [("위로", "up"), ("아래", "down"), ("멈춰", "stop"), ("정지", "stop"),
                                          ("오른쪽", "go_right"), ("왼쪽", "go_left")])
 def test_korean_commands(grammar, tmp_path, said, action):
-    from gcs_voice.matcher import get_matcher
+    from gcs_voice.understanding import get_matcher
 
     result = _recognise(grammar, pcm_of(said, tmp_path, "ko"))
     assert result.text == said

@@ -5,9 +5,9 @@ from __future__ import annotations
 import pytest
 
 from gcs_voice.asr.registry import load_recognizer
-from gcs_voice.dictionary import load_language
+from gcs_voice.domain.dictionary import load_language
 from gcs_voice.errors import ModelError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 from tests.asr_speech import pcm_of
 
 pytest.importorskip("faster_whisper")
@@ -52,7 +52,7 @@ def test_silence_is_flagged_and_output_stays_short(whisper):
 
 @pytest.mark.slow
 def test_auto_language_on_real_english(whisper, real_speech_dir):
-    from gcs_voice.audio import read_wav
+    from gcs_voice.audio.sources import read_wav
 
     result = _recognise(whisper, read_wav(real_speech_dir / "en/stop/stop_c518d1b1_nohash_0.wav"), "auto")
     assert result.lang == "en"
@@ -75,7 +75,7 @@ def whisper_score(whisper_model_dir):
 
 
 def _decide(recognizer, pcm, lang):
-    from gcs_voice.matcher import get_matcher
+    from gcs_voice.understanding import get_matcher
 
     result = _recognise(recognizer, pcm, lang)
     return result, get_matcher("phonetic").decide(result, [EN, ES] if lang == "auto" else [EN if lang == "en" else ES])

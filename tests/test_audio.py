@@ -8,9 +8,9 @@ import subprocess
 import numpy as np
 import pytest
 
-from gcs_voice.audio import AudioChunk, microphone_chunks, pcm_to_chunks, read_pcm, read_wav, resample, wav_to_chunks
+from gcs_voice.audio.sources import AudioChunk, microphone_chunks, pcm_to_chunks, read_pcm, read_wav, resample, wav_to_chunks
 from gcs_voice.errors import AudioError
-from gcs_voice.vad import frame_dbfs, load_vad_settings, segment_utterances
+from gcs_voice.audio.vad import frame_dbfs, load_vad_settings, segment_utterances
 from tests.asr_speech import need, say
 
 RATE = 16_000

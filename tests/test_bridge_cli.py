@@ -9,7 +9,7 @@ from pathlib import Path
 import pytest
 
 from e2e_support import REPO, demo_wav
-from gcs_voice.sim_process import free_udp_port
+from gcs_voice.session.sim_process import free_udp_port
 
 
 def _fly(*args: str, tmp_path: Path) -> subprocess.CompletedProcess:

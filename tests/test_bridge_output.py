@@ -6,10 +6,10 @@ import io
 import json
 from pathlib import Path
 
-from gcs_voice.events import EventBus
-from gcs_voice.headless import HeadlessPrinter
-from gcs_voice.session_log import SessionLog, read_session_log, session_paths
-from gcs_voice.view import ViewState, render
+from gcs_voice.session.events import EventBus
+from gcs_voice.session.headless import HeadlessPrinter
+from gcs_voice.session.session_log import SessionLog, read_session_log, session_paths
+from gcs_voice.session.view import ViewState, render
 
 
 def _bus_with_a_session(tmp_path: Path) -> tuple[EventBus, io.StringIO, io.StringIO, Path]:

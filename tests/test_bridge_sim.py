@@ -13,15 +13,15 @@ from pathlib import Path
 import pytest
 
 from e2e_support import SPEEDUP, require_parts
-from gcs_voice.actions import ActionMapper
-from gcs_voice.bridge import Bridge, Request
-from gcs_voice.events import EventBus
-from gcs_voice.flight_log import read_flight
+from gcs_voice.actions.mapper import ActionMapper
+from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.session.events import EventBus
+from gcs_voice.session.flight_log import read_flight
 from gcs_voice.link import VehicleLink
-from gcs_voice.listen import start_voice_thread
-from gcs_voice.session_log import SessionLog
+from gcs_voice.session.listen import start_voice_thread
+from gcs_voice.session.session_log import SessionLog
 from gcs_voice.settings import load_settings
-from gcs_voice.sim_process import BundledSim
+from gcs_voice.session.sim_process import BundledSim
 
 pytestmark = pytest.mark.slow
 

@@ -10,9 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
-import make_corpus as mc  # noqa: E402
+from tools import make_corpus as mc
 
 NOISES = mc.parse_noises("raw,u0.05,u0.15,babble10,hum5")
 

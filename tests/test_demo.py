@@ -10,14 +10,14 @@ from pathlib import Path
 import pytest
 
 from e2e_support import REPO, require_parts
-from gcs_voice.flight_log import read_flight
-from gcs_voice.session_log import read_session_log
+from gcs_voice.session.flight_log import read_flight
+from gcs_voice.session.session_log import read_session_log
 
 pytestmark = pytest.mark.slow
 
 
 def test_demo_flies_the_english_sequence_and_writes_its_outputs(tmp_path: Path) -> None:
-    require_parts("sim_bridge.cli", "gcs_voice.asr.registry", "gcs_voice.audio")
+    require_parts("sim_bridge.cli", "gcs_voice.asr.registry", "gcs_voice.audio.sources")
     started = time.monotonic()
     proc = subprocess.run([sys.executable, "-m", "gcs_voice", "demo", "--lang", "en", "--engine", "sphinx"],
                           cwd=tmp_path, capture_output=True, text=True, timeout=180,

@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from gcs_voice.dictionary import ACTIONS, MOTION_ACTIONS, available_languages, load_dictionary, load_language
+from gcs_voice.domain.dictionary import ACTIONS, MOTION_ACTIONS, available_languages, load_dictionary, load_language
 from gcs_voice.errors import DictionaryError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 
 
 @pytest.mark.parametrize("lang", ["en", "es"])

@@ -13,8 +13,8 @@ from pathlib import Path
 import pytest
 
 from e2e_support import REPO, SPEEDUP, demo_wav, require_parts
-from gcs_voice.session_log import read_session_log
-from gcs_voice.sim_process import BundledSim
+from gcs_voice.session.session_log import read_session_log
+from gcs_voice.session.sim_process import BundledSim
 
 pytestmark = pytest.mark.slow
 

@@ -13,14 +13,14 @@ from pathlib import Path
 import pytest
 
 from e2e_support import SPEEDUP, angle_diff_deg, demo_wav, require_parts, run_fly, speech, speed_at
-from gcs_voice.sim_process import BundledSim
+from gcs_voice.session.sim_process import BundledSim
 
 pytestmark = [pytest.mark.slow, pytest.mark.usefixtures("parts")]
 
 
 @pytest.fixture
 def parts() -> None:
-    require_parts("sim_bridge.cli", "gcs_voice.asr.registry", "gcs_voice.audio")
+    require_parts("sim_bridge.cli", "gcs_voice.asr.registry", "gcs_voice.audio.sources")
 
 
 def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Path) -> None:
@@ -108,7 +108,7 @@ def test_ctrl_c_stops_the_vehicle_before_exit(tmp_path: Path) -> None:
     import sys
 
     from e2e_support import REPO
-    from gcs_voice.flight_log import read_flight
+    from gcs_voice.session.flight_log import read_flight
 
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         cmd = [sys.executable, "-m", "gcs_voice", "--connect", sim.connection, "--say", str(demo_wav("go_forward")),

@@ -10,7 +10,7 @@ import random
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from gcs_voice.actions import ActionMapper
+from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link.state import VehicleStateTracker
 
 FLOATS = (math.nan, math.inf, -math.inf, 1e38, -1e38, 0.0)

@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 from pymavlink import mavutil
 
-from gcs_voice.actions import ActionMapper
+from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link import VehicleLink
 from gcs_voice.settings import load_settings
 from link_peer import free_udp_port

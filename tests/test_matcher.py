@@ -5,11 +5,11 @@ from __future__ import annotations
 import pytest
 
 from gcs_voice.asr.base import Hypothesis, Recognition
-from gcs_voice.dictionary import load_language
+from gcs_voice.domain.dictionary import load_language
 from gcs_voice.errors import GcsVoiceError
-from gcs_voice.matcher import DEFAULT_MATCHER, MATCHERS, Matcher, get_matcher
-from gcs_voice.matcher.levenshtein import levenshtein_distance
-from gcs_voice.matcher.thresholds import matcher_thresholds
+from gcs_voice.understanding import DEFAULT_MATCHER, MATCHERS, Matcher, get_matcher
+from gcs_voice.understanding.levenshtein import levenshtein_distance
+from gcs_voice.understanding.thresholds import matcher_thresholds
 
 ALL = ["exact", "levenshtein", "phonetic"]
 EN = load_language("en")
@@ -239,7 +239,7 @@ def test_small_class_gap_is_rejected() -> None:
 
 def test_confident_transcript_distance_is_data(tmp_path) -> None:
     """How near a confident transcript must be to the winning class is read from thresholds.toml."""
-    from gcs_voice.matcher.thresholds import THRESHOLDS_PATH
+    from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
 
     text = THRESHOLDS_PATH.read_text(encoding="utf-8")
     strict = tmp_path / "strict.toml"

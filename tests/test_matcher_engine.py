@@ -9,12 +9,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gcs_voice.dictionary import load_language
-from gcs_voice.matcher import MATCHERS, get_matcher
+from gcs_voice.domain.dictionary import load_language
+from gcs_voice.understanding import MATCHERS, get_matcher
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tools"))
 
-import make_corpus  # noqa: E402
+from tools import make_corpus
 
 pytestmark = pytest.mark.slow
 EN = load_language("en")

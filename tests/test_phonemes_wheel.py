@@ -9,7 +9,7 @@ _PROBE = """
 import ctypes.util, sys
 if sys.argv[1] == "wheel":
     ctypes.util.find_library = lambda name: None   # as on a machine without Debian's espeak-ng
-from gcs_voice.matcher import phonemes
+from gcs_voice.understanding import phonemes
 for text, voice in [("go right", "en-us"), ("turn counterclockwise", "en-us"), ("gira a la derecha", "es")]:
     print(phonemes.ipa(text, voice))
 print(phonemes._lib._name)

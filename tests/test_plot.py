@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from gcs_voice.flight_log import read_flight
-from gcs_voice.plot import PlotError, commands_from_session_log, commands_from_setpoints, load_room, plot_flight
+from gcs_voice.session.flight_log import read_flight
+from gcs_voice.session.plot import PlotError, commands_from_session_log, commands_from_setpoints, load_room, plot_flight
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -69,7 +69,7 @@ def test_plot_px4_with_room_and_session_log(tlogs_dir: Path, tmp_path: Path) -> 
 
 
 def test_bundled_room_by_name(tmp_path: Path) -> None:
-    from gcs_voice.plot import rooms_dir
+    from gcs_voice.session.plot import rooms_dir
 
     if not (rooms_dir() / "living_room.json").is_file():
         pytest.skip("sim_bridge rooms not in this checkout yet")

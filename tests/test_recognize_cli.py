@@ -52,14 +52,14 @@ def test_plain_lines_and_default_engine(wavs):
 
 
 def test_stdin_pcm(wavs):
-    from gcs_voice.audio import read_wav
+    from gcs_voice.audio.sources import read_wav
 
     rows = _rows(recognize("-", "--engine", "sphinx", "--json", stdin=read_wav(wavs["stop"])))
     assert rows[0]["file"] == "-" and rows[0]["action"] == "stop"
 
 
 def test_segment_splits_a_recording(wavs, tmp_path):
-    from gcs_voice.audio import read_wav
+    from gcs_voice.audio.sources import read_wav
 
     import numpy as np
 

@@ -8,7 +8,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from sim_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
+from tools.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import struct
 
 import pytest
-from sim_gcs import LockstepGcs
+from tools.lockstep_gcs import LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 

@@ -6,7 +6,7 @@ import math
 import random
 
 import pytest
-from sim_gcs import VELOCITY_YAW, LockstepGcs
+from tools.lockstep_gcs import VELOCITY_YAW, LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
@@ -172,7 +172,7 @@ def test_fuzz_random_and_mutated_frames_then_still_flies(gcs: LockstepGcs) -> No
 def test_tcp_clients_garbage_split_frames_and_abrupt_disconnects() -> None:
     import socket
 
-    from sim_bridge.cli import build_sim
+    from sim_bridge.build import build_sim
 
     server = build_sim("ardupilot", "open_field", tcp=["127.0.0.1:0"])
     port = server.tcp_servers[0].port

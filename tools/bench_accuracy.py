@@ -8,9 +8,9 @@ timings per file in ``out/bench/recognitions-<engine>.json`` (resumable; Whisper
 voices, latency and real-time factor, and confusion matrices, into docs/bench/accuracy.md.
 ``tune`` sweeps the rejection thresholds on the dev split + real voices.
 
-    nice -n 10 python tools/bench_accuracy.py recognise --engines sphinx,whisper
-    python tools/bench_accuracy.py report
-    python tools/bench_accuracy.py tune --engine whisper --matcher phonetic
+    nice -n 10 python -m tools.bench_accuracy recognise --engines sphinx,whisper
+    python -m tools.bench_accuracy report
+    python -m tools.bench_accuracy tune --engine whisper --matcher phonetic
 """
 
 from __future__ import annotations
@@ -28,15 +28,13 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tools"))
 
-from gcs_voice.asr.base import Hypothesis, Recognition  # noqa: E402
-from gcs_voice.dictionary import Dictionary  # noqa: E402
-from gcs_voice.matcher import MATCHERS, get_matcher  # noqa: E402
+from gcs_voice.asr.base import Hypothesis, Recognition
+from gcs_voice.domain.dictionary import Dictionary
+from gcs_voice.understanding import MATCHERS, get_matcher
 
-import bench_accuracy_engines as bench_engines  # noqa: E402
-import make_corpus  # noqa: E402
+from tools import bench_accuracy_engines as bench_engines
+from tools import make_corpus
 
 CACHE_DIR = REPO / "out" / "bench"
 DOC = REPO / "docs" / "bench" / "accuracy.md"
@@ -277,7 +275,7 @@ def main(argv: list[str] | None = None) -> int:
         recognise(args.engines.split(","), items, args.limit_s, args.every)
         return 0
     items = real_items(SHARED / "speech") + items
-    import bench_accuracy_report as bench_report
+    from tools import bench_accuracy_report as bench_report
 
     if args.stage == "tune":
         bench_report.tune(args.engines.split(","), args.matchers.split(","), items)

@@ -44,7 +44,7 @@ def supports(label: str, lang: str) -> bool:
 def load(label: str, lang: str):
     """A loaded Recognizer for one language, ready for ``start_stream(lang)``."""
     from gcs_voice.asr.registry import load_recognizer
-    from gcs_voice.dictionary import load_language
+    from gcs_voice.domain.dictionary import load_language
 
     c = ENGINES[label]
     return load_recognizer(c["engine"], [load_language(lang)], model=c["model"], mode=c["mode"])

@@ -9,12 +9,12 @@ from pathlib import Path
 
 import numpy as np
 
-from bench_accuracy import (
+from tools.bench_accuracy import (
     BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, fresh_cache, is_near, recognition,
     score,
 )
-from gcs_voice.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
-from gcs_voice.matcher import DEFAULT_MATCHER, get_matcher
+from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
+from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
 
 LANGS = ("en", "es")
 REPORT_SPLITS = ("test", "real")  # thresholds are tuned on "dev" and the real voices
@@ -256,7 +256,7 @@ def tune_scored(engine: str, matcher_name: str, items: list[Item], workdir: Path
     """Sweep the score-mode rejection settings (SCORED_GRID) on the dev split + real voices."""
     import tomllib
 
-    from gcs_voice.matcher.thresholds import THRESHOLDS_PATH
+    from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
 
     dictionaries = {lang: load_language(lang) for lang in LANGS}
     cache = fresh_cache(engine, items)

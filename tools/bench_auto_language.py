@@ -5,8 +5,8 @@ the short encoder window (the engine's own code); the language is chosen (a) by 
 detection among the loaded languages and (b) by the highest prior-corrected phrase score. Prints how
 often each picks the right language, and the closed-set class accuracy that follows (no rejection).
 
-    python tools/make_corpus.py
-    nice -n 10 python tools/bench_auto_language.py --split dev --noises raw --limit 90
+    python -m tools.make_corpus
+    nice -n 10 python -m tools.bench_auto_language --split dev --noises raw --limit 90
 """
 
 from __future__ import annotations
@@ -18,11 +18,9 @@ from collections import Counter
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tools"))
 
-import bench_accuracy  # noqa: E402
-import bench_accuracy_engines as bench_engines  # noqa: E402
+from tools import bench_accuracy
+from tools import bench_accuracy_engines as bench_engines
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -34,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     from gcs_voice.asr.registry import load_recognizer
     from gcs_voice.asr.whisper_score import score_phrases
-    from gcs_voice.dictionary import load_language
+    from gcs_voice.domain.dictionary import load_language
 
     recognizer = load_recognizer("whisper", [load_language("en"), load_language("es")],
                                  model=str(bench_engines.WHISPER_MODEL), mode="score")

@@ -2,7 +2,7 @@
 """Latency from the end of an utterance to (a) the action decided, (b) the first setpoint on the wire,
 (c) the vehicle's velocity (or heading) responding in telemetry; p50/p95 per engine.
 
-Each engine flies one real session (``gcs_voice.session.run_session``, the code ``gcs-voice --say`` runs)
+Each engine flies one real session (``gcs_voice.session.run.run_session``, the code ``gcs-voice --say`` runs)
 against the bundled simulator in real time (no speed-up, so (c) is in wall time) on loopback. Utterances
 are fed at speaking pace, and the clock starts when the last audio chunk has been fed, i.e. the end of the
 recording (0.3 s of trailing silence included, as a segmenter would wait for it). (a) and the utterance
@@ -12,7 +12,7 @@ station sent or received each packet).
 Corpus: the espeak-ng phrases below (two voices), or ``--corpus DIR`` made by tools/make_corpus.py
 (its clean English command takes). Only utterances decided as the intended action are timed.
 
-    nice -n 10 python tools/bench_latency.py --out docs/bench/latency.md
+    nice -n 10 python -m tools.bench_latency --out docs/bench/latency.md
 """
 
 from __future__ import annotations
@@ -27,14 +27,12 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-sys.path.insert(0, str(ROOT / "tools"))
 
-from gcs_voice.errors import GcsVoiceError  # noqa: E402
-from gcs_voice.flight_log import read_flight  # noqa: E402
-from gcs_voice.link.setpoints import body_to_ned  # noqa: E402
-from gcs_voice.listen import ScriptStep  # noqa: E402
-from gcs_voice.session_log import read_session_log  # noqa: E402
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.flight_log import read_flight
+from gcs_voice.link.setpoints import body_to_ned
+from gcs_voice.session.listen import ScriptStep
+from gcs_voice.session.session_log import read_session_log
 
 #: (action, phrase, two espeak-ng voice:wpm takes): alternating motions and stops so every command asks
 #: for a change, back-and-forth so the flight stays near home. Phrases and voices are ones the bundled
@@ -54,7 +52,7 @@ GAP_S = 2.5
 
 
 def synth_corpus(out_dir: Path) -> list[tuple[Path, str]]:
-    from make_demo_audio import synthesize
+    from tools.make_demo_audio import synthesize
 
     items = []
     for take in range(2):
@@ -147,8 +145,8 @@ def _response_ms(flight, sent_t: float, want: tuple, yaw_deg: float, action: str
 
 
 def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], work: Path) -> tuple[list[dict], int]:
-    from gcs_voice.session import SessionConfig, load_voice, run_session
-    from gcs_voice.sim_process import BundledSim
+    from gcs_voice.session.run import SessionConfig, load_voice, run_session
+    from gcs_voice.session.sim_process import BundledSim
 
     voice = load_voice("en", engine, model, None)
     script = [ScriptStep(p, GAP_S) for p, _ in items]
@@ -200,7 +198,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
-        "Command: `nice -n 10 python tools/bench_latency.py"
+        "Command: `nice -n 10 python -m tools.bench_latency"
         + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --out {args.out}" if args.out else "") + "`",
         "",
         f"Corpus: {corpus_note}; fed at speaking pace, one every {GAP_S:g} s, after `--takeoff 1.5`.",

@@ -1,6 +1,6 @@
 """Fly a fixed action sequence through ActionMapper + VehicleLink against any vehicle and measure it.
 
-    python tools/link_flight.py --connect udpin:127.0.0.1:14550 [--tlog out/flight.tlog] [--markdown]
+    python -m tools.link_flight --connect udpin:127.0.0.1:14550 [--tlog out/flight.tlog] [--markdown]
 
 Works with the bundled simulator (``python -m sim_bridge.cli``), an ArduCopter or PX4 SITL, or a
 real vehicle (careful: it flies). Prints one row per step: what was commanded, how long it lasted,
@@ -14,11 +14,10 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
-from gcs_voice.actions import ActionMapper  # noqa: E402
-from gcs_voice.link import VehicleLink  # noqa: E402
-from gcs_voice.settings import load_settings  # noqa: E402
+from gcs_voice.actions.mapper import ActionMapper
+from gcs_voice.link import VehicleLink
+from gcs_voice.settings import load_settings
 
 #: (action, seconds to let it run)
 SEQUENCE: list[tuple[str, float]] = [

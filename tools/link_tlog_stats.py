@@ -1,6 +1,6 @@
 """Summarise a ground-station .tlog: setpoint stream timing, encodings used, modes, ACKs, link gaps.
 
-    python tools/link_tlog_stats.py FILE.tlog [FILE.tlog ...]
+    python -m tools.link_tlog_stats FILE.tlog [FILE.tlog ...]
 
 Prints markdown. Works on ../shared/tlogs/*.tlog (the reference SITL captures) and on what
 ``VehicleLink(tlog_path=...)`` writes, so the bridge's stream can be compared with a known-good one.
@@ -13,12 +13,10 @@ import sys
 from collections import Counter
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
+from pymavlink import mavutil
 
-from pymavlink import mavutil  # noqa: E402
-
-from gcs_voice.link.acks import command_name  # noqa: E402
-from gcs_voice.link.state import CommandAck, VehicleStateTracker  # noqa: E402
+from gcs_voice.link.acks import command_name
+from gcs_voice.link.state import CommandAck, VehicleStateTracker
 
 GCS_SYSTEM_ID = 255
 
@@ -68,14 +66,18 @@ def summarise(path: Path) -> str:
     return "\n".join(lines) + "\n"
 
 
-def main(argv: list[str]) -> int:
-    if not argv:
-        print(__doc__.strip().splitlines()[2].strip(), file=sys.stderr)
-        return 2
-    for name in argv:
-        print(summarise(Path(name)))
+def main(argv: list[str] | None = None) -> int:
+    import argparse
+
+    parser = argparse.ArgumentParser(prog="python -m tools.link_tlog_stats", description=__doc__.splitlines()[0])
+    parser.add_argument("tlogs", nargs="+", type=Path, metavar="FILE.tlog")
+    args = parser.parse_args(argv)
+    for name in args.tlogs:
+        if not name.is_file():
+            parser.error(f"{name}: no such file")
+        print(summarise(name))
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv[1:]))
+    sys.exit(main())

@@ -9,7 +9,7 @@ U(-0.15, 0.15) on the [-1, 1] signal, and mixed with babble (several espeak talk
 hum (sox harmonics + brown noise with tremolo) at 20, 10 and 5 dB SNR. Output: 16 kHz mono 16-bit
 WAVs and ``manifest.tsv``. Deterministic for a given ``--seed``.
 
-    python tools/make_corpus.py --out corpus --seed 1
+    python -m tools.make_corpus --out corpus --seed 1
 """
 
 from __future__ import annotations
@@ -27,9 +27,8 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
 
-from gcs_voice.dictionary import MOTION_ACTIONS, load_language  # noqa: E402
+from gcs_voice.domain.dictionary import MOTION_ACTIONS, load_language
 
 SAMPLE_RATE = 16_000
 SENTENCES_PATH = Path(__file__).resolve().parent / "corpus_sentences.toml"

@@ -1,13 +1,13 @@
 #!/usr/bin/env python3
 """Make the demo's spoken commands: espeak-ng text -> 16 kHz mono 16-bit WAV, deterministically.
 
-Reads ``gcs_voice/demo_audio/sequence.toml`` and writes every step's ``file`` beside it. The same
+Reads ``gcs_voice/session/demo_audio/sequence.toml`` and writes every step's ``file`` beside it. The same
 espeak-ng version with the same voice, speed and text gives the same bytes, so the committed WAVs can
 be checked by re-running this script (``git diff --stat`` stays empty). Resampling is done here with
 numpy (linear interpolation) rather than sox, so the result does not depend on sox's version.
 
-    python tools/make_demo_audio.py            # rewrite all WAVs
-    python tools/make_demo_audio.py --check    # exit 1 if a committed WAV differs from a fresh one
+    python -m tools.make_demo_audio            # rewrite all WAVs
+    python -m tools.make_demo_audio --check    # exit 1 if a committed WAV differs from a fresh one
 """
 
 from __future__ import annotations
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-AUDIO_DIR = ROOT / "gcs_voice" / "demo_audio"
+AUDIO_DIR = ROOT / "gcs_voice" / "session" / "demo_audio"
 RATE_HZ = 16_000
 PAD_S = 0.3  # silence before and after, as a person leaves between commands
 

@@ -15,7 +15,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from sim_bridge.lockstep import VELOCITY_YAW, LockstepGcs
+from tools.lockstep_gcs import VELOCITY_YAW, LockstepGcs
 
 DEFAULT_OUT = Path("tests/fixtures/sim_ardupilot_guided_flight.tlog")
 EPOCH_UNIX_S = 1795000000.0     # 2026-11-18, fixed so re-recording is deterministic

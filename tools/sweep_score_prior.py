@@ -6,8 +6,8 @@ silence (the prior). Then, for each weight w, the class of the phrase maximising
 ``logprob - w * prior`` is compared with the truth: closed-set accuracy, no rejection. The weight
 in gcs_voice/asr/engines.toml was chosen with this on the dev split (docs/bench/accuracy.md).
 
-    python tools/make_corpus.py
-    nice -n 10 python tools/sweep_score_prior.py --split dev --noises raw,u0.15,babble10
+    python -m tools.make_corpus
+    nice -n 10 python -m tools.sweep_score_prior --split dev --noises raw,u0.15,babble10
 """
 
 from __future__ import annotations
@@ -22,12 +22,10 @@ from pathlib import Path
 import numpy as np
 
 REPO = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(REPO))
-sys.path.insert(0, str(REPO / "tools"))
 
-import bench_accuracy  # noqa: E402
-import bench_accuracy_engines as bench_engines  # noqa: E402
-from gcs_voice.asr.whisper_score import phrase_logprobs  # noqa: E402
+from tools import bench_accuracy
+from tools import bench_accuracy_engines as bench_engines
+from gcs_voice.asr.whisper_score import phrase_logprobs
 
 CACHE = REPO / "out" / "bench" / "score-raw-logprobs.json"
 
@@ -56,7 +54,7 @@ def main(argv: list[str] | None = None) -> int:
         items = items[: args.limit]
     cache = json.loads(CACHE.read_text()) if CACHE.is_file() else {}
     recognizers = {}
-    from gcs_voice.dictionary import load_language
+    from gcs_voice.domain.dictionary import load_language
 
     # a changed WAV or dictionary is scored again: both are in the cache keys
     tag = {lang: f"{lang}@{bench_accuracy.file_digest(load_language(lang).path)}" for lang in {it.lang for it in items}}

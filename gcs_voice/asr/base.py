@@ -11,10 +11,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
-__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer", "BufferedStream"]
+from gcs_voice.audio import SAMPLE_RATE  # every engine takes 16 kHz, mono, signed 16-bit LE PCM
 
-#: Every engine takes 16 kHz, mono, signed 16-bit little-endian PCM.
-SAMPLE_RATE = 16_000
+__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer", "BufferedStream"]
 
 
 @dataclass(frozen=True)

@@ -11,7 +11,7 @@ import importlib.util
 from collections.abc import Sequence
 
 from gcs_voice.asr.base import Recognizer
-from gcs_voice.dictionary import Dictionary
+from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import GcsVoiceError, ModelError
 
 __all__ = ["ENGINES", "ENGINE_PACKAGES", "MODES", "UnknownEngineError", "load_recognizer",

@@ -16,9 +16,9 @@ from collections.abc import Sequence
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import sphinx_model_dir
 from gcs_voice.asr.settings import engine_settings
-from gcs_voice.dictionary import Dictionary
+from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 
 __all__ = ["SphinxRecognizer", "SphinxStream"]
 

@@ -23,9 +23,9 @@ from pathlib import Path
 from gcs_voice.asr.base import SAMPLE_RATE, Hypothesis, Recognition
 from gcs_voice.asr.models import check_vosk_model_dir, find_vosk_model, vosk_model_hint
 from gcs_voice.asr.settings import engine_settings
-from gcs_voice.dictionary import Dictionary
+from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 
 __all__ = ["VoskRecognizer", "VoskStream", "unknown_token_for"]
 

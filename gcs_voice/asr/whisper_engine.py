@@ -24,9 +24,9 @@ from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognit
 from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
 from gcs_voice.asr.settings import engine_settings
 from gcs_voice.asr.whisper_score import canonical_tokens
-from gcs_voice.dictionary import Dictionary
+from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
-from gcs_voice.text import normalize_text
+from gcs_voice.domain.text import normalize_text
 
 __all__ = ["WhisperRecognizer", "WhisperStream"]
 

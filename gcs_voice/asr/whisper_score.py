@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from gcs_voice.dictionary import Dictionary, Phrase
+from gcs_voice.domain.dictionary import Dictionary, Phrase
 
 __all__ = ["PhraseScore", "canonical_tokens", "phrase_tokens", "phrase_logprobs", "score_phrases",
            "class_posteriors", "class_gap", "collapse_repeats"]

@@ -3,7 +3,7 @@
 Typical use (what the bridge does)::
 
     settings = load_settings(config_path, **flag_overrides)        # gcs_voice.settings
-    mapper = ActionMapper(settings)                                 # gcs_voice.actions
+    mapper = ActionMapper(settings)                                 # gcs_voice.actions.mapper
     with VehicleLink("udpin:0.0.0.0:14550", settings, tlog_path="flight.tlog", on_event=print) as link:
         link.connect()                       # wait for a HEARTBEAT, ask for telemetry
         link.takeoff(settings.takeoff_altitude_m, source=mapper.setpoint)   # OperationResult

@@ -14,7 +14,7 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.autopilot.base import Autopilot, CommandContext
+from sim_bridge.autopilot.base import FORCE_MAGIC, Autopilot, CommandContext
 from sim_bridge.setpoints import FrameRules
 from sim_bridge.vehicle import Behaviour, VehicleEvent
 
@@ -30,7 +30,6 @@ ARMABLE_MODES = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 POSITION_CONTROLLED_MODES = frozenset({GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE})
 ALWAYS_ON_FLAGS = (mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
                    | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
-FORCE_MAGIC = 21196
 #: ArduCopter's takeoff climb seen in SITL (peak 1.23 m/s to 2 m); PILOT_SPEED_UP caps it.
 TAKEOFF_CLIMB_M_S = 1.25
 

@@ -18,7 +18,10 @@ from sim_bridge.params import ParamStore
 from sim_bridge.setpoints import FrameRules, SetpointRejected, decode_setpoint
 from sim_bridge.vehicle import Vehicle, VehicleEvent
 
-__all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data"]
+__all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data", "FORCE_MAGIC"]
+
+#: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming past the checks (both autopilots).
+FORCE_MAGIC = 21196
 
 
 class Outbox(Protocol):

@@ -15,7 +15,7 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.autopilot.base import Autopilot, CommandContext
+from sim_bridge.autopilot.base import FORCE_MAGIC, Autopilot, CommandContext
 from sim_bridge.setpoints import FrameRules, SetpointRejected
 from sim_bridge.vehicle import Behaviour, VehicleEvent
 
@@ -38,7 +38,6 @@ DISPLAY_NAMES = {HOLD: "Hold", TAKEOFF: "Takeoff", MISSION: "Mission", RTL: "Ret
                  OFFBOARD_MODE: "Offboard", (MANUAL, 0): "Manual", (ALTCTL, 0): "Altitude", (POSCTL, 0): "Position",
                  (ACRO, 0): "Acro", (STABILIZED, 0): "Stabilized"}
 KNOWN_AUTO_SUBS = frozenset({2, 3, 4, 5, 6})
-FORCE_MAGIC = 21196
 ARM_DENIED = "Arming denied: Resolve system health failures first\t"
 #: PX4's takeoff: "Takeoff detected" came 1.56 s after the command in the SIH run.
 TAKEOFF_DELAY_S = 1.0

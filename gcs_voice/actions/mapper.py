@@ -1,0 +1,156 @@
+"""The nine action classes as velocity + heading setpoints, with the safety rules applied every tick.
+
+``go_*`` move in the body frame of the heading *target* and keep it; ``up``/``down`` change height;
+``turn_*`` move the heading target by exactly ``turn_step_deg`` from the current target (two
+"turn right" make 180); ``stop`` holds (zero velocity, same heading target). An action lasts until the
+next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home, or above whatever a fresh
+downward rangefinder sees (a table), whichever is nearer; climbs stop at ``ceiling_m``;
+horizontal motion stops at ``fence_radius_m`` from home (only the outward motion). Unknown height or
+position counts as "at the limit": the mapper does not command what it cannot check. A lost link
+turns the action into ``stop``, so the first setpoint after the link returns is a hold.
+NaN never leaves the mapper.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from collections import deque
+from dataclasses import dataclass
+from typing import Protocol
+
+from gcs_voice.actions.setpoint import Setpoint, body_to_ned, wrap_deg
+from gcs_voice.domain.dictionary import ACTIONS, FLIGHT_ACTIONS
+from gcs_voice.settings import Settings, load_settings
+
+__all__ = ["ActionMapper", "MappedAction", "UnknownActionError"]
+
+
+class VehicleState(Protocol):
+    """What the mapper reads of the vehicle (``gcs_voice.link.VehicleState`` is one): NED metres from the
+    EKF origin, heading clockwise from north, and whether the link is alive. None = not yet known."""
+
+    north_m: float | None
+    east_m: float | None
+    home_north_m: float | None
+    home_east_m: float | None
+    heading_deg: float | None
+    ground_clearance_m: float | None
+    last_heard_s: float | None
+    link_ok: bool
+
+    @property
+    def height_m(self) -> float | None: ...
+
+
+class UnknownActionError(ValueError):
+    """An action id that is not one of gcs_voice.domain.dictionary.ACTIONS (a programming error, not user input)."""
+
+
+@dataclass(frozen=True)
+class MappedAction:
+    """What one decided action means: a motion (handled by the streamer) or a flight operation for the link."""
+
+    action: str
+    flight_operation: str | None  # "take_off" | "land" | "arm" | "disarm" | None for motions
+    yaw_target_deg: float
+
+
+def _finite(value: float | None) -> bool:
+    return value is not None and math.isfinite(value)
+
+
+class ActionMapper:
+    """Holds the current action and heading target; ``setpoint(state)`` is called at the stream rate."""
+
+    def __init__(self, settings: Settings | None = None) -> None:
+        self.settings = settings or load_settings()
+        self.action: str = "stop"
+        self.yaw_target_deg: float | None = None
+        #: why the last setpoint differs from the plain action ("" when it does not)
+        self.limit_reason: str = ""
+        #: automatic action changes (floor reached, link lost), newest last, for the UI
+        self.events: deque[str] = deque(maxlen=32)
+        #: apply() runs in the caller's thread, setpoint() in the link's stream thread
+        self._lock = threading.RLock()
+
+    def _init_yaw(self, state: VehicleState) -> float:
+        if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
+            self.yaw_target_deg = wrap_deg(state.heading_deg) if _finite(state.heading_deg) else 0.0
+        return self.yaw_target_deg
+
+    def reset_heading(self, state: VehicleState) -> None:
+        """Forget the heading target; the next setpoint takes the vehicle's current heading (after take-off)."""
+        with self._lock:
+            self.yaw_target_deg = None
+            self._init_yaw(state)
+
+    def apply(self, action: str, state: VehicleState) -> MappedAction:
+        """Make ``action`` the current one (motions) or hand back the flight operation to run."""
+        with self._lock:
+            return self._apply(action, state)
+
+    def _apply(self, action: str, state: VehicleState) -> MappedAction:
+        if action not in ACTIONS:
+            raise UnknownActionError(f"unknown action {action!r}; expected one of {', '.join(ACTIONS)}")
+        yaw = self._init_yaw(state)
+        if action in FLIGHT_ACTIONS:
+            self.action = "stop"
+            return MappedAction(action, action, yaw)
+        if action == "turn_right":
+            yaw = self.yaw_target_deg = wrap_deg(yaw + self.settings.turn_step_deg)
+        elif action == "turn_left":
+            yaw = self.yaw_target_deg = wrap_deg(yaw - self.settings.turn_step_deg)
+        self.action = action
+        return MappedAction(action, None, yaw)
+
+    def _switch_to_stop(self, reason: str) -> None:
+        if self.action != "stop":
+            self.events.append(f"{self.action} -> stop: {reason}")
+        self.action = "stop"
+
+    def setpoint(self, state: VehicleState) -> Setpoint:
+        """The setpoint for now: the action's velocity, limited by floor, ceiling and fence."""
+        with self._lock:
+            return self._setpoint(state)
+
+    def _setpoint(self, state: VehicleState) -> Setpoint:
+        yaw = self._init_yaw(state)
+        reasons: list[str] = []
+        if state.last_heard_s is not None and not state.link_ok:
+            self._switch_to_stop("link lost")
+        height = state.height_m if _finite(state.height_m) else None
+        clearance = state.ground_clearance_m if _finite(state.ground_clearance_m) else None
+        above_ground = height if clearance is None or height is None else min(height, clearance)
+        if self.action == "down" and (above_ground is None or above_ground <= self.settings.floor_m):
+            what = "height unknown" if above_ground is None else (
+                f"floor {self.settings.floor_m:g} m reached" + (" (rangefinder)" if above_ground != height else ""))
+            self._switch_to_stop(what)
+        h_speed, v_speed = self.settings.horizontal_speed_m_s, self.settings.vertical_speed_m_s
+        forward, right, down = {
+            "go_forward": (h_speed, 0.0, 0.0), "go_back": (-h_speed, 0.0, 0.0),
+            "go_right": (0.0, h_speed, 0.0), "go_left": (0.0, -h_speed, 0.0),
+            "up": (0.0, 0.0, -v_speed), "down": (0.0, 0.0, v_speed),
+        }.get(self.action, (0.0, 0.0, 0.0))
+        if down < 0 and (height is None or height >= self.settings.ceiling_m):
+            down = 0.0
+            reasons.append(f"ceiling {self.settings.ceiling_m:g} m" if height is not None else "height unknown")
+        if forward or right:
+            reason = self._fence_reason(state, forward, right, yaw)
+            if reason:
+                forward = right = 0.0
+                reasons.append(reason)
+        self.limit_reason = "; ".join(reasons)
+        return Setpoint(forward, right, down, yaw)
+
+    def _fence_reason(self, state: VehicleState, forward_m_s: float, right_m_s: float, yaw_deg: float) -> str:
+        if not (_finite(state.north_m) and _finite(state.east_m)):
+            return "position unknown"
+        offset_north = state.north_m - (state.home_north_m if _finite(state.home_north_m) else 0.0)
+        offset_east = state.east_m - (state.home_east_m if _finite(state.home_east_m) else 0.0)
+        if math.hypot(offset_north, offset_east) < self.settings.fence_radius_m:
+            return ""
+        north_m_s, east_m_s = body_to_ned(forward_m_s, right_m_s, yaw_deg)
+        outward = north_m_s * offset_north + east_m_s * offset_east > 0.0
+        return f"fence {self.settings.fence_radius_m:g} m from home" if outward else ""
+

@@ -1,0 +1,59 @@
+"""The mapper's output: a velocity in the heading target's frame plus that heading, in SI units.
+
+Owned by the actions layer; ``gcs_voice.link.setpoints`` encodes it as SET_POSITION_TARGET_LOCAL_NED.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+__all__ = ["Setpoint", "body_to_ned", "wrap_deg"]
+
+
+def wrap_deg(angle_deg: float) -> float:
+    """An angle in [0, 360)."""
+    wrapped = math.fmod(angle_deg, 360.0)
+    if wrapped < 0:
+        wrapped += 360.0
+    return 0.0 if wrapped >= 360.0 else wrapped + 0.0  # + 0.0 turns -0.0 into 0.0
+
+
+@dataclass(frozen=True)
+class Setpoint:
+    """A velocity in the body frame of the *heading target* plus that heading (MAVSDK-style names).
+
+    ``forward_m_s`` along the heading, ``right_m_s`` to its right, ``down_m_s`` positive down (NED),
+    ``yaw_deg`` the absolute heading target, clockwise from north.
+    """
+
+    forward_m_s: float = 0.0
+    right_m_s: float = 0.0
+    down_m_s: float = 0.0
+    yaw_deg: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("forward_m_s", "right_m_s", "down_m_s", "yaw_deg"):
+            if not math.isfinite(getattr(self, name)):
+                raise ValueError(f"Setpoint.{name} must be finite, got {getattr(self, name)!r}")
+
+    @classmethod
+    def stop(cls, yaw_deg: float) -> "Setpoint":
+        """Zero velocity, keep the heading target."""
+        return cls(0.0, 0.0, 0.0, yaw_deg)
+
+    @property
+    def is_stop(self) -> bool:
+        return self.forward_m_s == 0.0 and self.right_m_s == 0.0 and self.down_m_s == 0.0
+
+    def ned_m_s(self) -> tuple[float, float, float]:
+        """(north, east, down) velocity."""
+        north, east = body_to_ned(self.forward_m_s, self.right_m_s, self.yaw_deg)
+        return north, east, self.down_m_s
+
+
+def body_to_ned(forward_m_s: float, right_m_s: float, yaw_deg: float) -> tuple[float, float]:
+    """Rotate a horizontal body-frame velocity by the heading ``yaw_deg`` into (north, east)."""
+    yaw_rad = math.radians(yaw_deg)
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    return forward_m_s * cos_yaw - right_m_s * sin_yaw, forward_m_s * sin_yaw + right_m_s * cos_yaw

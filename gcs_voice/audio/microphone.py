@@ -1,0 +1,54 @@
+"""Live utterances for a session: the microphone through the segmenter, always listening or push-to-talk.
+
+Push-to-talk (``--push-to-talk``) gates the same stream: while the talk key is not held open the
+segmenter is fed silence, so closing it ends the utterance at once and nothing said outside it counts.
+Each utterance comes with the wall-clock time its speech ended (the segmenter's end, not the moment
+its hangover ran out), which is where latency is counted from.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterator
+
+__all__ = ["microphone_utterances", "check_microphone"]
+
+
+def check_microphone(device: int | str | None = None) -> str:
+    """The input device's name, or AudioError now (before any link opens) when there is none."""
+    from gcs_voice.errors import AudioError
+
+    try:
+        import sounddevice as sd
+    except (ImportError, OSError) as exc:
+        raise AudioError(f"microphone unavailable: {exc} (install libportaudio2)") from None
+    try:
+        info = sd.query_devices(device, kind="input")
+    except Exception as exc:  # sounddevice raises PortAudioError / ValueError
+        raise AudioError(f"no microphone: {str(exc).splitlines()[0]} (use --say FILE.wav to fly from "
+                         "recordings)") from None
+    return str(info.get("name", "input"))
+
+
+def microphone_utterances(talk: threading.Event | None = None,
+                          device: int | str | None = None) -> Iterator[tuple[bytes, float]]:
+    """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
+
+    ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
+    """
+    from gcs_voice.audio.sources import AudioChunk, microphone_chunks
+    from gcs_voice.audio.vad import segment_utterances
+
+    t0: list[float] = []
+
+    def gated() -> Iterator[AudioChunk]:
+        for chunk in microphone_chunks(device):
+            if not t0:
+                t0.append(time.time() - chunk.start_s)
+            if talk is not None and not talk.is_set():
+                chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
+            yield chunk
+
+    for utterance in segment_utterances(gated()):
+        yield utterance.pcm, t0[0] + utterance.end_s

@@ -1,0 +1,86 @@
+"""``gcs-voice [fly]``: connect to a vehicle and fly it by voice (microphone, or recorded ``--say`` files).
+
+    gcs-voice --udp 14550                          # listen like a ground station, speak to fly
+    gcs-voice --connect tcp:127.0.0.1:5760 --say takeoff.wav forward.wav --takeoff 1.5 --headless --json
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from gcs_voice.link.options import DEFAULT_UDP_PORT
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from gcs_voice.link.options import add_setting_arguments
+
+    link = parser.add_argument_group("vehicle link")
+    where = link.add_mutually_exclusive_group()
+    where.add_argument("--udp", type=int, metavar="PORT",
+                       help=f"listen for the vehicle on UDP PORT, like a ground station (default {DEFAULT_UDP_PORT})")
+    where.add_argument("--connect", metavar="STRING",
+                       help="pymavlink connection string: udpin:HOST:PORT, udpout:HOST:PORT, tcp:HOST:PORT, "
+                            "tcpin:HOST:PORT, /dev/ttyACM0[,BAUD]")
+    link.add_argument("--wait", type=float, default=30.0, metavar="S",
+                      help="seconds to wait for the vehicle's first HEARTBEAT (default 30)")
+    voice = parser.add_argument_group("voice")
+    voice.add_argument("--lang", default="en", choices=("en", "es", "auto"), help="language spoken (default en)")
+    voice.add_argument("--engine", help="recogniser: vosk, whisper or sphinx (default: the best installed one "
+                                        "for the language)")
+    voice.add_argument("--model", help="model path or name for the engine")
+    voice.add_argument("--matcher", help="how heard text is matched to the dictionary (default: the project's "
+                                         "default matcher)")
+    voice.add_argument("--dictionary", action="append", metavar="TOML",
+                       help="use this dictionary file instead of the bundled one (repeatable)")
+    mic = voice.add_mutually_exclusive_group()
+    mic.add_argument("--push-to-talk", action="store_true",
+                     help="listen only while toggled with Enter (default: always listening)")
+    mic.add_argument("--say", nargs="+", type=Path, metavar="WAV",
+                     help="feed these recorded utterances in order, as if spoken, instead of the microphone")
+    voice.add_argument("--gap", type=float, default=3.0, metavar="S",
+                       help="with --say: seconds each action runs before the next utterance (default 3)")
+    voice.add_argument("--hold", type=float, default=3.0, metavar="S",
+                       help="with --say: seconds the last action runs before the session ends, stopped (default 3)")
+    flight = parser.add_argument_group("flight")
+    flight.add_argument("--takeoff", type=float, metavar="M",
+                        help="arm and take off to M metres as soon as the vehicle reports it can")
+    flight.add_argument("--config", type=Path, metavar="FILE",
+                        help="settings TOML overriding the defaults (speeds, floor, fence, ceiling, link timing)")
+    add_setting_arguments(flight)
+    out = parser.add_argument_group("output")
+    out.add_argument("--headless", action="store_true", help="one line per event instead of the live view")
+    out.add_argument("--json", action="store_true", help="with --headless: each line is the JSON event record")
+    out.add_argument("--log-dir", type=Path, default=Path("."), metavar="DIR",
+                     help="where the session's .tlog and .jsonl go (default: current directory)")
+    out.add_argument("--log-name", metavar="STEM", help="file name stem for the session logs (default: time stamp)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from gcs_voice.link.options import setting_overrides
+    from gcs_voice.session.run import SessionConfig, run_session
+
+    if args.json and not args.headless:
+        args.headless = True
+    connection = _connection(args)
+    config = SessionConfig(
+        connection=connection, lang=args.lang, engine=args.engine, model=args.model, matcher=args.matcher,
+        dictionaries=args.dictionary or [], settings_path=args.config, say=args.say or [], gap_s=args.gap,
+        hold_s=args.hold, takeoff_m=args.takeoff, push_to_talk=args.push_to_talk, headless=args.headless,
+        as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
+        setting_overrides=setting_overrides(args),
+    )
+    return run_session(config).exit_code
+
+
+def _connection(args: argparse.Namespace) -> str:
+    from gcs_voice.errors import GcsVoiceError
+    from gcs_voice.link.connection import parse_connection, udp_listen
+
+    if args.connect:
+        parse_connection(args.connect)  # one clear line for a malformed string
+        return args.connect
+    port = DEFAULT_UDP_PORT if args.udp is None else args.udp
+    if not 0 < port < 65536:
+        raise GcsVoiceError(f"--udp {port}: not a port number (1-65535)")
+    return udp_listen(port)

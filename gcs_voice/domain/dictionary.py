@@ -1,0 +1,171 @@
+"""Domain dictionaries: which spoken phrases mean which action class, one TOML file per language.
+
+A new language is a new file in ``dictionaries/`` (or any path given by the user); no code change.
+Loading validates the file completely and names the file and the phrase in every error, because a
+dictionary mistake silently turns one command into another.
+"""
+
+from __future__ import annotations
+
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from gcs_voice.errors import DictionaryError
+from gcs_voice.domain.text import normalize_text
+
+__all__ = [
+    "MOTION_ACTIONS",
+    "FLIGHT_ACTIONS",
+    "ACTIONS",
+    "AUTO_LANGUAGES",
+    "Dictionary",
+    "Phrase",
+    "load_dictionary",
+    "load_language",
+    "available_languages",
+    "dictionaries_dir",
+]
+
+#: The paper's nine action classes, in the paper's order.
+MOTION_ACTIONS: tuple[str, ...] = (
+    "up", "down", "go_right", "go_left", "go_forward", "go_back", "turn_right", "turn_left", "stop",
+)
+#: Flight management a real flight needs beyond the nine (not part of the paper's benchmark).
+FLIGHT_ACTIONS: tuple[str, ...] = ("take_off", "land", "arm", "disarm")
+ACTIONS: tuple[str, ...] = MOTION_ACTIONS + FLIGHT_ACTIONS
+#: What ``--lang auto`` listens for: the product's two languages (the paper's users mixed them).
+#: Other bundled dictionaries (``ko``, for the Vosk test) are used only when asked for by name.
+AUTO_LANGUAGES: tuple[str, ...] = ("en", "es")
+
+
+@dataclass(frozen=True)
+class Phrase:
+    """One dictionary phrase: as written (for grammars and display) and normalised (for matching)."""
+
+    text: str
+    key: str
+    action: str
+
+
+@dataclass(frozen=True)
+class Dictionary:
+    """All phrases of one language. ``phrases`` keeps file order; ``by_key`` maps normalised text to a phrase."""
+
+    language: str
+    name: str
+    path: Path
+    phrases: tuple[Phrase, ...]
+    skip_words: tuple[str, ...] = ()
+    by_key: dict[str, Phrase] = field(default_factory=dict, compare=False, repr=False)
+
+    def actions(self) -> tuple[str, ...]:
+        """Action classes this dictionary covers, in canonical order."""
+        present = {p.action for p in self.phrases}
+        return tuple(a for a in ACTIONS if a in present)
+
+    def phrases_for(self, action: str) -> tuple[Phrase, ...]:
+        return tuple(p for p in self.phrases if p.action == action)
+
+    def vocabulary(self) -> tuple[str, ...]:
+        """Distinct words of all phrases as written (accents kept), for recogniser grammars."""
+        words: dict[str, None] = {}
+        for p in self.phrases:
+            for w in normalize_text(p.text, fold=False).split():
+                words.setdefault(w, None)
+        return tuple(words)
+
+    def strip_skip_words(self, normalised_text: str) -> str:
+        """Drop filler words ("please", "drone") from an already-normalised transcript."""
+        text = f" {normalised_text} "
+        for w in self.skip_words:
+            text = text.replace(f" {w} ", " ")
+        return " ".join(text.split())
+
+
+def dictionaries_dir() -> Path:
+    """Where the bundled dictionaries are: the source tree's ``dictionaries/`` or the wheel's copy."""
+    here = Path(__file__).resolve().parent
+    for candidate in (here.parents[1] / "dictionaries", here.parent / "_data" / "dictionaries"):
+        if candidate.is_dir():
+            return candidate
+    raise DictionaryError(f"bundled dictionaries not found next to {here}")
+
+
+def available_languages() -> tuple[str, ...]:
+    """Language codes of the bundled dictionaries (file stems), sorted."""
+    return tuple(sorted(p.stem for p in dictionaries_dir().glob("*.toml")))
+
+
+def load_language(lang: str) -> Dictionary:
+    """Load the bundled dictionary for a language code such as ``en`` or ``es``."""
+    path = dictionaries_dir() / f"{lang}.toml"
+    if not path.is_file():
+        langs = ", ".join(available_languages()) or "none"
+        raise DictionaryError(f"no dictionary for language {lang!r} (bundled: {langs})")
+    return load_dictionary(path)
+
+
+def load_dictionary(path: str | Path) -> Dictionary:
+    """Read and validate one dictionary file; every problem raises DictionaryError naming file and phrase."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise DictionaryError(f"{path}: cannot read dictionary: {exc.strerror or exc}") from None
+    try:
+        data = tomllib.loads(raw.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise DictionaryError(f"{path}: not UTF-8 text") from None
+    except tomllib.TOMLDecodeError as exc:
+        raise DictionaryError(f"{path}: invalid TOML: {exc}") from None
+    if not data:
+        raise DictionaryError(f"{path}: empty dictionary")
+
+    language = data.get("language")
+    if not isinstance(language, str) or not language.strip():
+        raise DictionaryError(f"{path}: missing 'language' (a code such as \"en\")")
+    name = data.get("name", language)
+    if not isinstance(name, str):
+        raise DictionaryError(f"{path}: 'name' must be a string")
+    skip = data.get("skip_words", [])
+    if not isinstance(skip, list) or not all(isinstance(w, str) for w in skip):
+        raise DictionaryError(f"{path}: 'skip_words' must be a list of strings")
+    unknown_keys = set(data) - {"language", "name", "skip_words", "phrases"}
+    if unknown_keys:
+        raise DictionaryError(f"{path}: unknown key(s) {', '.join(sorted(unknown_keys))}")
+    table = data.get("phrases")
+    if not isinstance(table, dict) or not table:
+        raise DictionaryError(f"{path}: no [phrases] table, or it is empty")
+
+    phrases: list[Phrase] = []
+    by_key: dict[str, Phrase] = {}
+    for action, items in table.items():
+        if action not in ACTIONS:
+            raise DictionaryError(
+                f"{path}: unknown action class {action!r} (known: {', '.join(ACTIONS)})"
+            )
+        if not isinstance(items, list) or not items:
+            raise DictionaryError(f"{path}: class {action!r} needs a non-empty list of phrases")
+        for text in items:
+            if not isinstance(text, str):
+                raise DictionaryError(f"{path}: class {action!r}: phrase {text!r} is not a string")
+            key = normalize_text(text)
+            if not key:
+                raise DictionaryError(f"{path}: class {action!r}: phrase {text!r} is empty after normalisation")
+            if key in by_key:
+                other = by_key[key]
+                where = "twice under" if other.action == action else f"under {other.action!r} and"
+                raise DictionaryError(f"{path}: phrase {text!r} is listed {where} {action!r}")
+            phrase = Phrase(text=text, key=key, action=action)
+            by_key[key] = phrase
+            phrases.append(phrase)
+
+    return Dictionary(
+        language=language.strip(),
+        name=name,
+        path=path,
+        phrases=tuple(phrases),
+        skip_words=tuple(normalize_text(w) for w in skip),
+        by_key=by_key,
+    )

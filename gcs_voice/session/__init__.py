@@ -1,0 +1,1 @@
+"""The live session that wires ear, understanding, actions and link: bridge, view, keys, logs, plot, demo."""

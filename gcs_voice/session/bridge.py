@@ -1,0 +1,282 @@
+"""The session loop: decided actions in, vehicle commands out, with the safety rules between them.
+
+Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) and the keyboard call
+``Bridge.submit``; the link's own thread streams ``ActionMapper.setpoint`` at 10 Hz; this loop
+(``Bridge.run``) takes one submitted action at a time and watches the link. Rules, in order:
+
+- no action (rejected utterance): nothing is commanded (the voice side already said why);
+- link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
+  setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
+- motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
+  the reason (a setpoint would cut an ArduCopter take-off short near the ground);
+- disarm while flying: refused (a misheard word must not drop the vehicle);
+- take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
+- floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
+- whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
+  which commands a stop and keeps it on the wire before the link closes.
+"""
+
+from __future__ import annotations
+
+import queue
+import signal
+import threading
+import time
+from dataclasses import dataclass, field
+from typing import Any
+
+from gcs_voice.understanding.decision import Decision
+from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.session.events import EventBus
+
+__all__ = ["Bridge", "Request", "status_of"]
+
+LOOP_PERIOD_S = 0.05
+#: how long the final stop is kept on the wire before the link closes (several 10 Hz setpoints)
+FINAL_STOP_S = 0.6
+#: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
+ON_GROUND_HEIGHT_M = 0.2
+
+
+@dataclass
+class Request:
+    """One action to carry out: from the voice (with its decision), a key, or the script (--takeoff)."""
+
+    action: str
+    origin: str  # voice | key | script
+    decision: Decision | None = None
+    utterance_end_t: float | None = None  # UNIX time the utterance ended (latency origin)
+    decided_t: float | None = None
+    done: threading.Event = field(default_factory=threading.Event)
+    accepted: bool = False
+
+
+def status_of(state: Any, action: str | None) -> dict[str, Any]:
+    """The view's vehicle panel from a link VehicleState (None-safe)."""
+    if state is None:
+        return {"link": "waiting"}
+    speed = None
+    if state.north_m_s is not None and state.east_m_s is not None:
+        speed = (state.north_m_s ** 2 + state.east_m_s ** 2 + (state.down_m_s or 0.0) ** 2) ** 0.5
+    link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
+    return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
+            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+
+
+def _on_ground(state: Any) -> bool:
+    """Landed by the autopilot's own word (EXTENDED_SYS_STATE), else by height above home."""
+    if state.landed_state is not None:
+        return state.landed_state == "ON_GROUND"
+    height = state.height_m
+    return height is not None and height < ON_GROUND_HEIGHT_M
+
+
+class Bridge:
+    """Owns the mapper's current action and the vehicle operations; ``run()`` until ``finish()``."""
+
+    def __init__(self, link: Any, mapper: Any, bus: EventBus, takeoff_m: float) -> None:
+        self.link = link
+        self.mapper = mapper
+        self.bus = bus
+        self.takeoff_m = takeoff_m
+        self._requests: queue.Queue[Request] = queue.Queue()
+        self._finish = threading.Event()
+        self._interrupted = False  # set by the SIGINT handler (a plain flag: no lock taken in a handler)
+        self._busy: str | None = None  # flight operation in progress
+        self._op_thread: threading.Thread | None = None
+        self._link_ok: bool | None = None
+        self._limit_reason = ""
+        self.exit_code = 0
+        self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
+
+    # ---- inputs (any thread) ----------------------------------------------------------------------
+    def submit(self, request: Request) -> Request:
+        self._requests.put(request)
+        return request
+
+    def finish(self, exit_code: int = 0) -> None:
+        self.exit_code = self.exit_code or exit_code
+        self._finish.set()
+
+    @property
+    def busy(self) -> str | None:
+        """The flight operation in progress (take_off, land, ...), or None."""
+        return self._busy
+
+    @property
+    def finished(self) -> bool:
+        return self._finish.is_set()
+
+    def status(self) -> dict[str, Any]:
+        return status_of(self.link.state, self._busy or self.mapper.action)
+
+    # ---- the loop ---------------------------------------------------------------------------------
+    def run(self) -> int:
+        """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
+
+        Ctrl-C only sets a flag that the loop reads: a KeyboardInterrupt raised at an arbitrary
+        bytecode could leave a lock (the link's, a queue's) held and hang the final stop.
+        """
+        previous = None
+        if threading.current_thread() is threading.main_thread():
+            previous = signal.signal(signal.SIGINT, self._on_sigint)
+        try:
+            while not self._finish.is_set() and not self._interrupted:
+                try:
+                    request = self._requests.get(timeout=LOOP_PERIOD_S)
+                except queue.Empty:
+                    request = None
+                self._watch()
+                if request is not None:
+                    try:
+                        self._serve(request)
+                    finally:
+                        request.done.set()
+        except KeyboardInterrupt:  # only when no handler could be installed (not the main thread)
+            self._interrupted = True
+        finally:
+            if self._interrupted:
+                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt")
+                self.exit_code = self.exit_code or 130
+            try:
+                self.shutdown()
+            finally:
+                if previous is not None:
+                    signal.signal(signal.SIGINT, previous)
+        return self.exit_code
+
+    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+        self._interrupted = True
+
+    def _watch(self) -> None:
+        """Link transitions and the mapper's automatic changes, said once each."""
+        state = self.link.state
+        if state.last_heard_s is not None and state.link_ok != self._link_ok:
+            if state.link_ok:
+                what = "connected" if self._link_ok is None else "restored"
+                self.bus.emit("link", f"link {what}: {state.autopilot or 'unknown autopilot'}, mode {state.mode}",
+                              state=what, autopilot=state.autopilot, system_id=state.system_id)
+            else:
+                self.bus.emit("link", f"link LOST: vehicle silent for {self.link.settings.link_lost_s:g} s; "
+                              "nothing is commanded until it returns, then a stop", state="lost")
+            self._link_ok = state.link_ok
+        while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
+            self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
+        reason = self.mapper.limit_reason
+        if reason != self._limit_reason:
+            if reason:
+                self.bus.emit("refused", f"{self.mapper.action} limited: {reason}", action=self.mapper.action,
+                              reason=reason)
+            self._limit_reason = reason
+
+    # ---- carrying out one request -------------------------------------------------------------------
+    def _refuse(self, request: Request, reason: str) -> None:
+        self.bus.emit("refused", f"{request.action} not done: {reason}", action=request.action, reason=reason,
+                      origin=request.origin)
+
+    def _serve(self, request: Request) -> None:
+        action = request.action
+        state = self.link.state
+        if not state.link_ok:
+            return self._refuse(request, "link lost - nothing is commanded until the vehicle is heard again")
+        if action in FLIGHT_ACTIONS:
+            if self._busy:
+                return self._refuse(request, f"busy: {self._busy} in progress")
+            if action == "disarm" and not _on_ground(state):
+                # A misheard "disarm" in the air would drop the vehicle: only on the ground.
+                return self._refuse(request, "the vehicle is flying: say 'land' first")
+            self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
+            self._start_operation(request)
+            return None
+        if action not in MOTION_ACTIONS:
+            return self._refuse(request, "unknown action")
+        if self._busy:
+            # Even a stop: a velocity setpoint ends an ArduCopter take-off where it is (a hover near the
+            # ground), and a landing is the autopilot's to finish. Both end in a hold by themselves.
+            return self._refuse(request, f"busy: {self._busy} in progress; the vehicle holds when it is done")
+        if not state.armed:
+            return self._refuse(request, "vehicle is not armed: say 'take off' first" if action != "stop"
+                                else "vehicle is not armed: nothing to stop")
+        velocity_mode = state.profile.velocity_mode if state.profile else None
+        if velocity_mode and state.mode != velocity_mode and not self._busy:
+            # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
+            return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
+                                         "say 'take off' to fly by voice again")
+        mapped = self.mapper.apply(action, state)
+        if not self.link.streaming:
+            self.link.start_stream(self.mapper.setpoint)
+        setpoint = self.mapper.setpoint(state)
+        self.link.send_setpoint(setpoint)  # at once, not at the next 10 Hz tick
+        sent_t = time.time()
+        request.accepted = True
+        d = request.decision
+        self.bus.emit(
+            "command", f"{(repr(d.phrase) + ' -> ') if d and d.phrase else ''}{action}"
+            + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
+            action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
+            origin=request.origin, yaw_target_deg=round(mapped.yaw_target_deg, 1),
+            setpoint={"forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
+                      "down_m_s": setpoint.down_m_s, "yaw_deg": round(setpoint.yaw_deg, 2)},
+            utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
+        )
+        return None
+
+    def _start_operation(self, request: Request) -> None:
+        self._busy = request.action
+        self._op_thread = threading.Thread(target=self._operate, args=(request,), name=f"op-{request.action}",
+                                           daemon=True)
+        self._op_thread.start()
+
+    def _operate(self, request: Request) -> None:
+        action = request.action
+        d = request.decision
+        self.bus.emit("command", f"{(repr(d.phrase) + ' -> ') if d and d.phrase else ''}{action}"
+                      + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
+                      action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
+                      origin=request.origin, utterance_end_t=request.utterance_end_t, decided_t=request.decided_t,
+                      sent_t=time.time())
+        try:
+            result = self._operation(action)
+            ok = bool(getattr(result, "ok", False))
+            self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result))
+            request.accepted = ok
+            if ok and action == "take_off":
+                self.flying_ready.set()
+        except Exception as exc:  # a failed operation is reported, never fatal to the loop
+            self.bus.emit("error", f"{action} failed: {exc}", what=action)
+        finally:
+            self._busy = None
+
+    def _operation(self, action: str) -> Any:
+        """Run one flight operation on the link (blocking); returns its OperationResult."""
+        link = self.link
+        if action == "take_off":
+            # The link sets the arming mode, arms (retrying while the vehicle says it cannot yet), climbs,
+            # then streams the mapper's setpoints (a hold at the heading kept through the climb).
+            self.mapper.reset_heading(link.state)
+            return link.takeoff(self.takeoff_m, source=self.mapper.setpoint)
+        if action == "land":
+            return link.land()  # stops the stream first: both autopilots land on their own
+        if action == "arm":
+            return link.arm()
+        if action == "disarm":
+            return link.disarm()
+        raise ValueError(f"not a flight operation: {action}")
+
+    # ---- the end ------------------------------------------------------------------------------------
+    def shutdown(self) -> None:
+        """Stop the vehicle (hold at the heading target) and keep that on the wire before returning."""
+        try:
+            state = self.link.state
+            in_velocity_mode = state.profile is None or state.mode == state.profile.velocity_mode
+            if state.armed and state.link_ok and in_velocity_mode and self._busy != "land":
+                if self.mapper.action != "stop":
+                    self.mapper.apply("stop", state)
+                if not self.link.streaming:
+                    self.link.start_stream(self.mapper.setpoint)
+                self.link.send_setpoint(self.mapper.setpoint(state))
+                self.bus.emit("command", "stop (end of session)", action="stop", origin="shutdown",
+                              sent_t=time.time())
+                time.sleep(FINAL_STOP_S)
+        except Exception as exc:  # the link itself may be what failed
+            self.bus.emit("error", f"could not command the final stop: {exc}")

@@ -1,0 +1,171 @@
+"""Wire one session together: models, link, mapper, bridge, voice thread, keys, view and logs.
+
+``gcs-voice fly`` and ``gcs-voice demo`` both call ``run_session``. Everything that can be wrong in
+the user's input (a model, a WAV, a dictionary, a connection string, a settings file) is loaded or
+checked *before* the link opens, so a mistake costs one line and no flight.
+"""
+
+from __future__ import annotations
+
+import sys
+import threading
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.session.events import EventBus
+from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
+from gcs_voice.session.session_log import SessionLog, session_paths
+
+__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice"]
+
+
+@dataclass
+class SessionConfig:
+    connection: str
+    lang: str = "en"
+    engine: str | None = None
+    model: str | None = None
+    matcher: str | None = None
+    dictionaries: Sequence[str | Path] = ()
+    settings_path: Path | None = None
+    say: Sequence[Path] = ()
+    gap_s: float = 3.0
+    hold_s: float = 3.0
+    takeoff_m: float | None = None
+    push_to_talk: bool = False
+    headless: bool = True
+    as_json: bool = False
+    #: headless without the console printer (benchmarks); the session log is still written
+    quiet: bool = False
+    log_dir: Path = Path(".")
+    log_name: str | None = None
+    wait_vehicle_s: float = 30.0
+    #: explicit script (demo: per-step holds); overrides say/gap/hold when given
+    script: Sequence[ScriptStep] | None = None
+    #: extra bus subscribers (the demo's summary)
+    subscribers: Sequence[Callable[[Any], None]] = ()
+    #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
+    setting_overrides: dict[str, float | None] = field(default_factory=dict)
+
+
+@dataclass
+class SessionResult:
+    exit_code: int
+    tlog: Path
+    jsonl: Path
+    events: list = field(default_factory=list)
+
+
+def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: str | None,
+               dictionary_files: Sequence[str | Path] = ()) -> tuple[Any, Any, list, str | None]:
+    """(recognizer, matcher, dictionaries, stream language) for a language choice; errors are one line."""
+    from gcs_voice.asr.registry import default_engine, load_recognizer
+    from gcs_voice.domain.dictionary import AUTO_LANGUAGES, load_dictionary, load_language
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+
+    if dictionary_files:
+        dictionaries = [load_dictionary(p) for p in dictionary_files]
+    else:
+        dictionaries = [load_language(code) for code in (AUTO_LANGUAGES if lang == "auto" else (lang,))]
+    stream_lang = None if lang == "auto" else lang
+    engine_name = engine or default_engine(lang)
+    recognizer = load_recognizer(engine_name, dictionaries, model=model)
+    matcher = get_matcher(matcher_name or DEFAULT_MATCHER)
+    return recognizer, matcher, dictionaries, stream_lang
+
+
+def _script(config: SessionConfig) -> list[ScriptStep]:
+    if config.script is not None:
+        return list(config.script)
+    paths = list(config.say)
+    return [ScriptStep(p, config.gap_s if i < len(paths) - 1 else config.hold_s) for i, p in enumerate(paths)]
+
+
+def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None = None) -> SessionResult:
+    """Fly one session to its end; the vehicle is stopped before this returns, whatever happened."""
+    from gcs_voice.actions.mapper import ActionMapper
+    from gcs_voice.link import VehicleLink
+    from gcs_voice.settings import load_settings
+
+    settings = load_settings(config.settings_path, **config.setting_overrides)
+    recognizer, matcher, dictionaries, stream_lang = voice or load_voice(
+        config.lang, config.engine, config.model, config.matcher, config.dictionaries)
+    steps = _script(config)
+    for step in steps:
+        read_utterance(step.path)  # a missing or unusable WAV fails here, before any flight
+    if not steps:
+        from gcs_voice.audio.microphone import check_microphone
+
+        check_microphone()
+    tlog, jsonl = session_paths(config.log_dir, config.log_name)
+
+    bus = EventBus()
+    log = SessionLog(jsonl)
+    bus.subscribe(log)
+    for subscriber in config.subscribers:
+        bus.subscribe(subscriber)
+    view = None
+    if config.headless and not config.quiet:
+        from gcs_voice.session.headless import HeadlessPrinter
+
+        bus.subscribe(HeadlessPrinter(as_json=config.as_json))
+
+    def link_said(line: str) -> None:
+        if line.startswith("vehicle: "):
+            bus.emit("vehicle", line, text=line.removeprefix("vehicle: "))
+        elif not line.startswith("link "):  # link transitions are said by the bridge, once
+            bus.emit("warning", line, source="link")
+
+    bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
+             argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
+             engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
+    link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
+    exit_code = 1
+    try:
+        link.open()
+        mapper = ActionMapper(settings)
+        bridge = Bridge(link, mapper, bus, config.takeoff_m or settings.takeoff_altitude_m)
+        if not config.headless:
+            from gcs_voice.session.view import LiveView
+
+            view = LiveView(bridge.status, lambda: "")
+            bus.subscribe(view.state)
+            view.start()
+        state = link.wait_vehicle(config.wait_vehicle_s)
+        bus.emit("link", f"vehicle heard: {state.autopilot}, mode {state.mode}", state="heard",
+                 autopilot=state.autopilot)
+        telemetry = link.request_telemetry()
+        if not telemetry.ok:
+            bus.emit("warning", f"telemetry request: {telemetry}")
+        pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus)
+        ready: threading.Event | None = None
+        if config.takeoff_m is not None:
+            bridge.submit(Request("take_off", "script"))
+            ready = bridge.flying_ready
+        if steps:
+            start_voice_thread(bridge, run_script, pipeline, bridge, steps, 0.0, ready,
+                               settings.arm_timeout_s + settings.takeoff_timeout_s + 30.0)
+        else:
+            from gcs_voice.audio.microphone import microphone_utterances
+            from gcs_voice.session.keys import talk
+
+            start_voice_thread(bridge, run_microphone, pipeline, bridge,
+                               microphone_utterances(talk if config.push_to_talk else None))
+        if not config.headless and sys.stdin.isatty():
+            from gcs_voice.session.keys import start_key_thread
+
+            start_key_thread(bridge)
+        exit_code = bridge.run()
+    except KeyboardInterrupt:
+        bus.emit("session", "interrupted (Ctrl-C) before the flight loop", phase="interrupt")
+        exit_code = 130
+    finally:
+        if view is not None:
+            view.stop()
+        link.close()
+        bus.emit("session", f"session end (exit {exit_code})", phase="end", exit_code=exit_code)
+        log.close()
+    return SessionResult(exit_code, tlog, jsonl, [e.to_dict() for e in bus.history])

@@ -1,0 +1,243 @@
+"""What every matcher shares: reading the recognition, the rejection rules, and the reason sentences.
+
+A matcher only has to say how far a heard (normalised) text is from one dictionary phrase, as a
+distance in [0, 1]. This base turns distances into a Decision: the nearest phrase over all
+dictionaries (several = ``--lang auto``) and the considered n-best alternatives wins, unless the
+engine's own evidence, its confidence, the distance or the margin to another class says "unsure",
+in which case the drone does nothing and the reason says why.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import dataclass
+from pathlib import Path
+
+from gcs_voice.asr.base import Recognition
+from gcs_voice.understanding.decision import Decision
+from gcs_voice.domain.dictionary import Dictionary, Phrase
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds, transcript_limits
+from gcs_voice.domain.text import normalize_text
+
+__all__ = ["Matcher", "Candidate", "Ranking", "MatcherOptionError"]
+
+#: Options every matcher understands (all numbers; ``reject`` is 0/1 or a bool).
+KNOWN_OPTIONS = (
+    "max_distance",  # reject when the nearest phrase is farther than this (normalised distance)
+    "min_margin",  # reject when another class is within this distance of the winner
+    "min_confidence",  # reject when the best hypothesis' engine confidence is below this
+    "alternatives",  # how many n-best hypotheses to consider
+    "alt_penalty",  # distance added per rank below the best hypothesis
+    "reject",  # 0 = the paper's behaviour: always act on the nearest phrase
+)
+
+
+class MatcherOptionError(GcsVoiceError):
+    """A matcher was given an option it does not know, or a value that is not a number."""
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One (heard alternative, dictionary phrase) pair and how far apart they are."""
+
+    distance: float
+    phrase: Phrase
+    dictionary: Dictionary
+    heard: str
+    rank: int
+    text: str
+
+
+@dataclass(frozen=True)
+class Ranking:
+    """Nearest phrase, nearest phrase of another class, and an early rejection reason (or "")."""
+
+    best: Candidate | None
+    rival: Candidate | None
+    reason: str = ""
+
+
+class Matcher:
+    """Base class: subclasses set ``name`` and implement ``distance``."""
+
+    name: str = ""
+    #: n-best alternatives considered unless thresholds/options say otherwise.
+    default_alternatives: int = 1
+
+    def __init__(self, *, thresholds_path: str | Path = THRESHOLDS_PATH, **options: object) -> None:
+        self.thresholds_path = Path(thresholds_path)
+        self.options: dict[str, float] = {}
+        for key, value in options.items():
+            if key not in KNOWN_OPTIONS:
+                raise MatcherOptionError(
+                    f"matcher {self.name!r} has no option {key!r} (known: {', '.join(KNOWN_OPTIONS)})"
+                )
+            try:
+                self.options[key] = float(value)  # type: ignore[arg-type]
+            except (TypeError, ValueError):
+                raise MatcherOptionError(f"matcher option {key}={value!r} is not a number") from None
+
+    # -- what subclasses provide -------------------------------------------------------------------
+    def distance(self, heard: str, phrase: Phrase, dictionary: Dictionary) -> float:
+        """Normalised distance in [0, 1] between a normalised heard text and one phrase."""
+        raise NotImplementedError
+
+    def prepare(self, dictionaries: Sequence[Dictionary]) -> None:
+        """Hook to precompute per-dictionary data (phoneme strings...); called on every decide."""
+
+    # -- the shared decision -----------------------------------------------------------------------
+    def thresholds(self, engine: str | None) -> dict[str, float]:
+        """Effective thresholds: file defaults, the engine's overrides, then this matcher's options."""
+        merged = {"max_distance": 0.35, "min_margin": 0.0, "min_confidence": 0.0, "alt_penalty": 0.02,
+                  "alternatives": float(self.default_alternatives), "reject": 1.0}
+        merged.update(matcher_thresholds(self.name, engine, self.thresholds_path))
+        merged.update(self.options)
+        return merged
+
+    def decide(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> Decision:
+        """Nearest phrase over all dictionaries and alternatives, or no action with the reason."""
+        limits = self.thresholds(recognition.engine)
+        rejecting = limits["reject"] != 0.0
+        ranked = self.rank(recognition, dictionaries, limits)
+        if ranked.reason and (rejecting or ranked.best is None):
+            return self._reject(recognition.text, ranked.reason)
+        best, rival = ranked.best, ranked.rival
+        assert best is not None
+        lang = best.dictionary.language
+        score = max(0.0, min(1.0, 1.0 - best.distance))
+        if rejecting and best.distance > limits["max_distance"]:
+            return self._reject(
+                best.text, self.not_a_command_reason(best, limits["max_distance"]), best.phrase.text, lang, score
+            )
+        if rejecting and rival is not None and rival.distance - best.distance < limits["min_margin"]:
+            return self._reject(
+                best.text,
+                f"'{best.text}' is ambiguous: '{best.phrase.text}' ({best.distance:.2f}) vs "
+                f"'{rival.phrase.text}' ({rival.distance:.2f})",
+                best.phrase.text,
+                lang,
+                score,
+            )
+        reason = self._transcript_reason(recognition, best) if rejecting else ""
+        if reason:
+            return self._reject(best.text, reason, best.phrase.text, lang, score)
+        return Decision(
+            action=best.phrase.action,
+            text=best.text,
+            phrase=best.phrase.text,
+            lang=lang,
+            score=score,
+            reason="" if best.rank == 0 else f"matched alternative #{best.rank + 1} '{best.text}'",
+            matcher=self.name,
+        )
+
+    def rank(
+        self, recognition: Recognition, dictionaries: Sequence[Dictionary], limits: dict[str, float] | None = None
+    ) -> Ranking:
+        """The nearest phrase and the nearest phrase of another class, before any distance threshold.
+
+        ``reason`` is set when the utterance is rejected before matching (nothing heard, engine
+        evidence, low confidence); ``best`` is then still filled when there was text to match.
+        """
+        if not dictionaries:
+            raise ValueError("decide() needs at least one dictionary")
+        limits = limits or self.thresholds(recognition.engine)
+        heard = [
+            (rank, h.text, normalize_text(h.text))
+            for rank, h in enumerate(recognition.hypotheses[: max(1, int(limits["alternatives"]))])
+        ]
+        heard = [item for item in heard if item[2]]
+        if not heard:
+            if recognition.extra.get("out_of_grammar"):
+                return Ranking(None, None, "not a command (the recogniser heard speech outside the dictionary)")
+            return Ranking(None, None, "nothing heard")
+        # An alternative the engine itself gives little chance is not evidence for an action.
+        floor = limits["min_confidence"]
+        hyps = recognition.hypotheses
+        heard = [item for item in heard
+                 if item[0] == 0 or hyps[item[0]].confidence is None or hyps[item[0]].confidence >= floor]
+        reason = self._evidence_reason(recognition)
+        conf = recognition.best.confidence if recognition.best else None
+        if not reason and conf is not None and conf < limits["min_confidence"]:
+            text = recognition.text
+            reason = f"unsure of '{text}' (confidence {conf:.2f} < {limits['min_confidence']:.2f})"
+
+        self.prepare(dictionaries)
+        candidates: list[Candidate] = []
+        for rank, text, norm in heard:
+            for dictionary in dictionaries:
+                key = dictionary.strip_skip_words(norm)
+                if not key:
+                    continue
+                penalty = rank * limits["alt_penalty"]
+                for phrase in dictionary.phrases:
+                    d = min(1.0, self.distance(key, phrase, dictionary) + penalty)
+                    candidates.append(Candidate(d, phrase, dictionary, key, rank, text))
+        if not candidates:
+            return Ranking(None, None, reason or f"only filler words heard ('{heard[0][1]}')")
+
+        wanted_lang = recognition.lang
+        order = {id(c): i for i, c in enumerate(candidates)}
+        candidates.sort(
+            key=lambda c: (c.distance, c.dictionary.language != wanted_lang, c.rank, order[id(c)])
+        )
+        best = candidates[0]
+        # Ambiguity is judged within the winning text: a lower-ranked alternative of another class is
+        # the engine's doubt, already priced by alt_penalty and min_confidence.
+        rival = next(
+            (c for c in candidates if c.rank == best.rank and c.phrase.action != best.phrase.action), None
+        )
+        return Ranking(best, rival, reason)
+
+    # -- reasons ---------------------------------------------------------------------------------
+    def not_a_command_reason(self, best: Candidate, max_distance: float) -> str:
+        return (
+            f"'{best.text}' is not a command (nearest '{best.phrase.text}', "
+            f"distance {best.distance:.2f} > {max_distance:.2f})"
+        )
+
+    def _transcript_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """Check a scored phrase against the engine's own free transcript (Whisper mode "score").
+
+        The phrase scores say which command is likeliest, not whether the speech was a command. A
+        confident transcript is taken as what was said: it must sound like the winning class ("go
+        home" must not fly "go down"). An unsure one (gibberish on a robotic voice) is no evidence
+        either way, but then a weak phrase score needs it to agree.
+        """
+        limits = transcript_limits(recognition.engine, self.thresholds_path)
+        if not limits:
+            return ""
+        heard = recognition.transcript
+        key = best.dictionary.strip_skip_words(normalize_text(heard))
+        self.prepare([best.dictionary])
+        own = min((self.distance(key, p, best.dictionary) for p in best.dictionary.phrases
+                   if p.action == best.phrase.action), default=1.0) if key else 1.0
+        extra = recognition.extra
+        confident = extra.get("free_logprob", -float("inf")) > limits.get("confident_logprob", float("inf"))
+        if confident and own > limits.get("confident_max_distance", 1.0):
+            return (f"'{heard}' is not '{best.phrase.text}' (the recogniser's own transcript, "
+                    f"distance {own:.2f} > {limits['confident_max_distance']:.2f})")
+        phrase_score = extra.get("phrase_score", float("inf"))
+        if phrase_score < limits.get("min_phrase_score", -float("inf")) and own > limits.get("agree_max_distance", 1.0):
+            return (f"unsure of '{best.phrase.text}' (score {phrase_score:.2f} < {limits['min_phrase_score']:.2f}) "
+                    f"and the transcript '{heard}' does not sound like it")
+        return ""
+
+    def _evidence_reason(self, recognition: Recognition) -> str:
+        for key, limit in evidence_limits(recognition.engine, self.thresholds_path).items():
+            kind, _, name = key.partition("_")
+            value = recognition.extra.get(name)
+            if value is None:
+                continue
+            if kind == "max" and value > limit:
+                return f"'{recognition.text}' sounded unsure ({name} {value:.2f} > {limit:.2f})"
+            if kind == "min" and value < limit:
+                return f"'{recognition.text}' sounded unsure ({name} {value:.2f} < {limit:.2f})"
+        return ""
+
+    def _reject(
+        self, text: str, reason: str, phrase: str | None = None, lang: str | None = None, score: float = 0.0
+    ) -> Decision:
+        return Decision(action=None, text=text, phrase=phrase, lang=lang, score=score, reason=reason,
+                        matcher=self.name)
