@@ -115,6 +115,7 @@ class SimSigning:
         self.unsigned_ok = frozenset(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in data[autopilot]["unsigned_ok"])
         self.max_streams = int(data["limits"]["max_streams"])
         self.new_stream_behind = int(data["limits"]["new_stream_behind_s"]) * UNITS_PER_S
+        self.clock = clock
         self.state = _ClockedSigning(clock)
         # pymavlink's own check runs first on every link's parser: let it pass everything, decide here.
         self.state.allow_unsigned_callback = lambda _mav, _msg_id: True
@@ -133,7 +134,12 @@ class SimSigning:
         link.mav.signing = self.state
 
     def set_key(self, key: bytes, initial_timestamp: int) -> None:
-        """Use ``key`` from now on (all zeros with timestamp 0 turns signing off, as the spec says)."""
+        """Use ``key`` from now on (all zeros with timestamp 0 turns signing off, as the spec says).
+
+        Our timestamp starts a minute ahead of the clock, so a new stream must be stamped after this moment:
+        packets captured before the key was set (before the simulator started) are refused. ArduPilot gets
+        the same from its saved timestamp plus a minute; gcs-sim keeps nothing on disk.
+        """
         if len(key) != KEY_LEN:
             raise ValueError(f"a signing key is {KEY_LEN} bytes, not {len(key)}")
         if not any(key) and initial_timestamp == 0:
@@ -142,7 +148,7 @@ class SimSigning:
         else:
             self.state.secret_key = bytes(key)
             self.state.sign_outgoing = True
-            self.state.timestamp = initial_timestamp
+            self.state.timestamp = max(initial_timestamp, timestamp_now(self.clock()) + self.new_stream_behind)
 
     # ---------------------------------------------------------------- incoming
     def accept(self, msg: Any) -> bool:

@@ -270,8 +270,8 @@ def _signed_frame(key: bytes, timestamp: int, link_id: int = 0, sender: int = 25
 
 def test_a_forged_packet_cannot_push_a_stream_into_the_future() -> None:
     """pymavlink's own check stores the timestamp before it checks the signature; the C library (and we) do not."""
-    now = timestamp_now(time.time())
     signing = SimSigning("ardupilot", KEY)
+    now = timestamp_now(time.time())
     forged = _signed_frame(OTHER_KEY, now + 10**12)       # same stream, far future, wrong key
     assert not signing.accept(forged)
     genuine = _signed_frame(KEY, now + 5)
@@ -280,6 +280,43 @@ def test_a_forged_packet_cannot_push_a_stream_into_the_future() -> None:
     assert signing.accept(_signed_frame(KEY, now + 6))
     assert not signing.accept(_signed_frame(KEY, now - 61 * 100_000, link_id=7)), "a new stream a minute behind"
     assert (signing.counts.bad_signature, signing.counts.replayed, signing.counts.old_stream) == (1, 1, 1)
+
+
+def test_packets_stamped_before_the_key_was_set_are_refused() -> None:
+    """A restarted simulator has an empty stream table: the start time is the floor, not a minute before."""
+    before = timestamp_now(time.time())
+    signing = SimSigning("px4", KEY)
+    assert not signing.accept(_signed_frame(KEY, before - 1)), "captured before the simulator started"
+    assert signing.accept(_signed_frame(KEY, timestamp_now(time.time()) + 1, link_id=1))
+    assert signing.counts.old_stream == 1
+
+
+def test_mutated_signed_frames_never_pass() -> None:
+    """Any change to a signed frame that still parses (CRC recomputed) fails the signature; nothing raises."""
+    import random
+
+    rng = random.Random(12)
+    mav = M.MAVLink(None, srcSystem=255, srcComponent=190)
+    mav.signing.secret_key, mav.signing.sign_outgoing = KEY, True
+    mav.signing.timestamp = timestamp_now(time.time()) + 100_000
+    signing = SimSigning("ardupilot", KEY)
+    passed = 0
+    for n in range(2000):
+        good = bytearray(mav.command_long_encode(1, 1, 400, 0, 1, 21196, 0, 0, 0, 0, n).pack(mav))
+        bad = bytearray(good)
+        for _ in range(rng.randint(1, 3)):
+            bad[rng.randrange(3, len(bad))] ^= 1 << rng.randrange(8)
+        if bad[2] & M.MAVLINK_IFLAG_SIGNED:       # keep it parseable: recompute the CRC over the mutation
+            crc = mavutil.x25crc(bytes(bad[1:-15]))
+            crc.accumulate(bytes([M.MAVLink_command_long_message.crc_extra]))
+            bad[-15:-13] = crc.crc.to_bytes(2, "little")
+        parser = M.MAVLink(None)
+        parser.robust_parsing = True          # as the simulator parses
+        for msg in parser.parse_buffer(bytes(bad)) or []:
+            if msg.get_type() != "BAD_DATA" and bytes(msg.get_msgbuf()) != bytes(good):
+                passed += signing.accept(msg)
+    assert passed == 0
+    assert signing.counts.bad_signature > 1000
 
 
 def test_the_firmwares_unsigned_exceptions_pass_and_nothing_else() -> None:
