@@ -280,6 +280,9 @@ class SimServer:
         self.request_data_stream(msg)
 
     def _on_setup_signing(self, msg: Any, link: Link) -> None:
+        if self.vehicle.armed:          # both firmwares refuse a key change in flight
+            self.text(mavlink.MAV_SEVERITY_WARNING, self.signing.armed_refusal)
+            return
         self.signing.setup_signing(msg)
 
     def _on_timesync(self, msg: Any, link: Link) -> None:

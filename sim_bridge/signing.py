@@ -113,6 +113,7 @@ class SimSigning:
     def __init__(self, autopilot: str, key: bytes | None = None, clock: Callable[[], float] = time.time) -> None:
         data = _data()
         self.unsigned_ok = frozenset(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in data[autopilot]["unsigned_ok"])
+        self.armed_refusal = str(data[autopilot]["armed_refusal"])
         self.max_streams = int(data["limits"]["max_streams"])
         self.new_stream_behind = int(data["limits"]["new_stream_behind_s"]) * UNITS_PER_S
         self.clock = clock

@@ -180,6 +180,31 @@ def test_setup_signing_sets_rotates_and_clears_the_key() -> None:
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize("autopilot, text", [("ardupilot", "Won't setup signing when armed"),
+                                             ("px4", "MAVLink signing: rejected while armed")])
+def test_no_key_change_while_armed(autopilot: str, text: str) -> None:
+    sim = SimProcess("--autopilot", autopilot, "--signing-key", PASSPHRASE)
+    try:
+        gcs = sim.client(KEY)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:     # forced arm; refused until the autopilot has booted
+            gcs.mav.command_long_send(1, 1, M.MAV_CMD_COMPONENT_ARM_DISARM, 0, 1, 21196, 0, 0, 0, 0, 0)
+            ack = _ack(gcs, M.MAV_CMD_COMPONENT_ARM_DISARM, timeout=2)
+            if ack is not None and ack.result == M.MAV_RESULT_ACCEPTED:
+                break
+        assert gcs.recv_match(type="HEARTBEAT", condition="HEARTBEAT.base_mode & 128", blocking=True, timeout=10)
+        gcs.mav.setup_signing_send(1, 1, list(OTHER_KEY), timestamp_now(time.time()))
+        said = gcs.recv_match(type="STATUSTEXT", condition=f"STATUSTEXT.text == {text!r}", blocking=True, timeout=10)
+        assert said is not None and said._signed, "refused, and still signed with the old key"
+        _request_version(gcs)
+        assert _ack(gcs, M.MAV_CMD_REQUEST_MESSAGE) is not None, "the old key still commands"
+    finally:
+        line = sim.stop()
+        sim.close_clients()
+    assert "key changed" not in line, line
+
+
+@pytest.mark.slow
 def test_allow_refuses_other_hosts_on_tcp_and_udp() -> None:
     """--allow 127.0.0.1; the stranger speaks from 127.0.0.2 (also loopback, another address)."""
     gcs_udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
