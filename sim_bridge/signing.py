@@ -112,7 +112,8 @@ class SimSigning:
 
     def __init__(self, autopilot: str, key: bytes | None = None, clock: Callable[[], float] = time.time) -> None:
         data = _data()
-        self.unsigned_ok = frozenset(getattr(mavlink, f"MAVLINK_MSG_ID_{name}") for name in data[autopilot]["unsigned_ok"])
+        self.unsigned_ok = frozenset(getattr(mavlink, f"MAVLINK_MSG_ID_{name}")
+                                     for name in data[autopilot]["unsigned_ok"])
         self.armed_refusal = str(data[autopilot]["armed_refusal"])
         self.max_streams = int(data["limits"]["max_streams"])
         self.new_stream_behind = int(data["limits"]["new_stream_behind_s"]) * UNITS_PER_S
@@ -157,7 +158,8 @@ class SimSigning:
         if not self.enabled:
             return True
         buf = bytes(msg.get_msgbuf())
-        if len(buf) > SIGNATURE_BLOCK_LEN and buf[0] == mavlink.PROTOCOL_MARKER_V2 and buf[2] & mavlink.MAVLINK_IFLAG_SIGNED:
+        signed = buf[0] == mavlink.PROTOCOL_MARKER_V2 and bool(buf[2] & mavlink.MAVLINK_IFLAG_SIGNED)
+        if signed and len(buf) > SIGNATURE_BLOCK_LEN:
             verdict = self._check(buf, msg.get_srcSystem(), msg.get_srcComponent())
             if verdict == "signed_ok":
                 self.counts.signed_ok += 1

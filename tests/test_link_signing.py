@@ -24,7 +24,8 @@ from pymavlink.dialects.v20 import ardupilotmega as M  # noqa: E402
 from e2e_support import SPEEDUP, require_parts, run_fly  # noqa: E402
 from gcs_voice.link import VehicleLink  # noqa: E402
 from gcs_voice.link.security import LinkSecurity  # noqa: E402
-from gcs_voice.link.signing import GroundSigning, TimestampStore, _check_signature, key_from_flag, timestamp_now  # noqa: E402
+from gcs_voice.link.signing import (GroundSigning, TimestampStore, verify_signature, key_from_flag,  # noqa: E402
+                                    timestamp_now)
 from gcs_voice.session.sim_process import BundledSim  # noqa: E402
 from gcs_voice.settings import load_settings  # noqa: E402
 
@@ -178,9 +179,9 @@ def test_a_forged_packet_cannot_push_the_vehicles_stream_ahead() -> None:
         return bytearray(mav.heartbeat_encode(2, 3, 0, 0, 4).pack(mav))
 
     forged = frame(b"\x01" * 32, now + 10**12)
-    assert not _check_signature(receiver, forged, 1, 1)
-    assert _check_signature(receiver, frame(key, now), 1, 1), "the real vehicle is still heard"
-    assert not _check_signature(receiver, frame(key, now), 1, 1), "a replay is not"
+    assert not verify_signature(receiver, forged, 1, 1)
+    assert verify_signature(receiver, frame(key, now), 1, 1), "the real vehicle is still heard"
+    assert not verify_signature(receiver, frame(key, now), 1, 1), "a replay is not"
     # pymavlink's own check, for the record: the forged packet would have locked the real one out
     stock = M.MAVLink(None)
     stock.signing.secret_key = key

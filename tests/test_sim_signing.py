@@ -213,7 +213,8 @@ def test_allow_refuses_other_hosts_on_tcp_and_udp() -> None:
     stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     stranger.bind(("127.0.0.2", 0))
     proc = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge", "--tcp", "127.0.0.1:0", "--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}",
+        [sys.executable, "-m", "sim_bridge", "--tcp", "127.0.0.1:0",
+         "--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}",
          "--allow", "127.0.0.1", "--room", "open_field", "--duration", "300"],
         cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     parser, acks = M.MAVLink(None), []

@@ -28,7 +28,7 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_voice.errors import LinkError
 
-__all__ = ["GroundSigning", "TimestampStore", "key_from_flag", "passphrase_key", "timestamp_now",
+__all__ = ["GroundSigning", "TimestampStore", "key_from_flag", "passphrase_key", "timestamp_now", "verify_signature",
            "default_timestamp_path"]
 
 EPOCH_2015_UNIX_S = 1420070400
@@ -119,7 +119,7 @@ class _ClockedSigning(mavlink.MAVLinkSigning):
             self._timestamp = max(self._timestamp, int(value))
 
 
-def _check_signature(mav: Any, msgbuf: bytearray, src_system: int, src_component: int) -> bool:
+def verify_signature(mav: Any, msgbuf: bytearray, src_system: int, src_component: int) -> bool:
     """``mavlink_signature_check`` of the C library: the signature first, then the stream's timestamp."""
     signing = mav.signing
     data = bytes(msgbuf)
@@ -157,7 +157,7 @@ class GroundSigning:
         self.state = _ClockedSigning(self.store.floor())
         conn.mav.signing = self.state
         conn.setup_signing(self.key, sign_outgoing=True, allow_unsigned_callback=self._allow_unsigned)
-        conn.mav.check_signature = functools.partial(_check_signature, conn.mav)
+        conn.mav.check_signature = functools.partial(verify_signature, conn.mav)
         self._save(clean=False)
 
     def _allow_unsigned(self, _mav: Any, msg_id: int) -> bool:
