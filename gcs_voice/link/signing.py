@@ -28,8 +28,8 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_voice.errors import LinkError
 
-__all__ = ["GroundSigning", "TimestampStore", "key_from_flag", "passphrase_key", "timestamp_now", "verify_signature",
-           "default_timestamp_path"]
+__all__ = ["GroundSigning", "TimestampStore", "key_from_flag", "passphrase_key", "timestamp_now",
+           "verify_signature", "default_timestamp_path"]
 
 EPOCH_2015_UNIX_S = 1420070400
 UNITS_PER_S = 100_000
