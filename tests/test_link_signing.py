@@ -21,7 +21,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as M  # noqa: E402
 
-from e2e_support import SPEEDUP, require_parts, run_fly  # noqa: E402
+from e2e_support import SPEEDUP, demo_wav, require_parts, run_fly  # noqa: E402
 from gcs_voice.link import VehicleLink  # noqa: E402
 from gcs_voice.link.security import LinkSecurity  # noqa: E402
 from gcs_voice.link.signing import (GroundSigning, TimestampStore, verify_signature, key_from_flag,  # noqa: E402
@@ -30,7 +30,6 @@ from gcs_voice.session.sim_process import BundledSim  # noqa: E402
 from gcs_voice.settings import load_settings  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
-GO_FORWARD_WAV = REPO / "gcs_voice" / "session" / "demo_audio" / "en" / "go_forward.wav"
 PASSPHRASE = "tres tristes tigres"
 
 
@@ -69,7 +68,7 @@ def test_the_bridge_flies_a_signed_vehicle(autopilot: str, tmp_path: Path, monke
     key = _key_file(tmp_path)
     with BundledSim(autopilot=autopilot, speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log",
                     extra_args=["--signing-key", f"@{key}"]) as sim:
-        result = run_fly(sim.connection, [GO_FORWARD_WAV], tmp_path, hold_s=4.0,
+        result = run_fly(sim.connection, [demo_wav("go_forward")], tmp_path, hold_s=4.0,
                          extra=["--signing-key", f"@{key}", "--require-signed"])
     assert result.returncode == 0, result.stderr + result.stdout[-3000:]
     assert [c["action"] for c in result.commands()] == ["go_forward"]
