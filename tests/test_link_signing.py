@@ -214,6 +214,7 @@ def test_lock_vehicle_keeps_setpoints_from_a_stranger(lock: bool, tmp_path: Path
                 pass
         assert link.setpoints_sent >= sent_before + 20
         assert link.state.link_ok, "the vehicle is still heard"
+        assert link.request_telemetry().ok, "and still hears us: its ACKs come back"
     stranger.close()
     if lock:
         assert "SET_POSITION_TARGET_LOCAL_NED" not in got, got
