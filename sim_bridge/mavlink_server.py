@@ -20,6 +20,7 @@ from sim_bridge.autopilot import personality_class
 from sim_bridge.autopilot.base import Autopilot, CommandContext
 from sim_bridge.params import ParamStore
 from sim_bridge.protocols import ParamProtocol, mission_reply
+from sim_bridge.signing import SimSigning
 from sim_bridge.transport import Link, TcpClientLink, TcpServer, TlogWriter, UdpOutLink, wait_readable
 from sim_bridge.vehicle import Vehicle, VehicleEvent
 
@@ -76,12 +77,14 @@ class SimServer:
         self.last_handler_error = ""
         self.autopilot: Autopilot = personality_class(autopilot)(vehicle, params, self, home, self.epoch_unix_s)
         self.param_protocol = ParamProtocol(params, self)
+        self.signing = SimSigning(autopilot)      # no key until --signing-key or a SETUP_SIGNING
         self.schedule = telemetry.Schedule()
         self._setup_streams()
         params.on_change(self._on_param_change)
 
     # ----------------------------------------------------------------- links
     def add_link(self, link: Link) -> None:
+        self.signing.attach(link)
         self.links.append(link)
 
     def add_tcp_server(self, server: TcpServer) -> None:
@@ -161,7 +164,7 @@ class SimServer:
     def poll(self) -> None:
         for server in self.tcp_servers:
             for client in server.accept():
-                self.links.append(client)
+                self.add_link(client)
         for link in list(self.links):
             for chunk in link.read():
                 link.stats.bytes_in += len(chunk)
@@ -201,6 +204,8 @@ class SimServer:
         link.stats.packets_in += 1
         if self.tlog is not None:
             self.tlog.write(self._tlog_time_us(), bytes(msg.get_msgbuf()))
+        if not self.signing.accept(msg):       # with a key: unsigned, wrongly signed or replayed
+            return
         target = getattr(msg, "target_system", 0)
         component = getattr(msg, "target_component", 0)
         if target not in (0, SYSTEM_ID) or component not in (0, COMPONENT_ID) or msg.get_srcSystem() == SYSTEM_ID:
@@ -274,6 +279,12 @@ class SimServer:
     def _on_data_stream(self, msg: Any, link: Link) -> None:
         self.request_data_stream(msg)
 
+    def _on_setup_signing(self, msg: Any, link: Link) -> None:
+        if self.vehicle.armed:          # both firmwares refuse a key change in flight
+            self.text(mavlink.MAV_SEVERITY_WARNING, self.signing.armed_refusal)
+            return
+        self.signing.setup_signing(msg)
+
     def _on_timesync(self, msg: Any, link: Link) -> None:
         if msg.tc1 == 0:
             self.send(self._tlog_mav.timesync_encode(int(self.vehicle.time_s * 1e9), msg.ts1), link)
@@ -284,7 +295,7 @@ class SimServer:
         "PARAM_REQUEST_LIST": _on_param, "PARAM_REQUEST_READ": _on_param, "PARAM_SET": _on_param,
         "MISSION_REQUEST_LIST": _on_mission, "MISSION_REQUEST_INT": _on_mission, "MISSION_REQUEST": _on_mission,
         "MISSION_COUNT": _on_mission, "MISSION_CLEAR_ALL": _on_mission,
-        "REQUEST_DATA_STREAM": _on_data_stream, "TIMESYNC": _on_timesync,
+        "REQUEST_DATA_STREAM": _on_data_stream, "TIMESYNC": _on_timesync, "SETUP_SIGNING": _on_setup_signing,
     }
 
     # ----------------------------------------------------------------- the loop

@@ -24,6 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             "tcpin:HOST:PORT, /dev/ttyACM0[,BAUD]")
     link.add_argument("--wait", type=float, default=30.0, metavar="S",
                       help="seconds to wait for the vehicle's first HEARTBEAT (default 30)")
+    from gcs_voice.link.security import add_security_arguments
+
+    add_security_arguments(link)
     voice = parser.add_argument_group("voice")
     voice.add_argument("--lang", default="en", choices=("en", "es", "auto"), help="language spoken (default en)")
     voice.add_argument("--engine", help="recogniser: vosk, whisper or sphinx (default: the best installed one "
@@ -58,6 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from gcs_voice.link.options import setting_overrides
+    from gcs_voice.link.security import security_from_args
     from gcs_voice.session.run import SessionConfig, run_session
 
     if args.json and not args.headless:
@@ -68,7 +72,7 @@ def run(args: argparse.Namespace) -> int:
         dictionaries=args.dictionary or [], settings_path=args.config, say=args.say or [], gap_s=args.gap,
         hold_s=args.hold, takeoff_m=args.takeoff, push_to_talk=args.push_to_talk, headless=args.headless,
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
-        setting_overrides=setting_overrides(args),
+        setting_overrides=setting_overrides(args), link_security=security_from_args(args),
     )
     return run_session(config).exit_code
 

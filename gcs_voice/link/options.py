@@ -36,6 +36,9 @@ def add_link_arguments(parser: argparse.ArgumentParser) -> None:
                             "tcpin:HOST:PORT, or a serial device[,baud] such as /dev/ttyUSB0,57600")
     group.add_argument("--config", metavar="FILE", help="TOML settings file over the packaged defaults")
     group.add_argument("--tlog", metavar="FILE", help="record every packet sent and received to this .tlog")
+    from gcs_voice.link.security import add_security_arguments
+
+    add_security_arguments(group)
     add_setting_arguments(group)
 
 

@@ -22,6 +22,7 @@ from gcs_voice.link.acks import AckCollector
 from gcs_voice.link.connection import open_connection, parse_connection
 from gcs_voice.link.setpoints import Setpoint, setpoint_fields
 from gcs_voice.link.operations import FlightOperations
+from gcs_voice.link.security import LinkSecurity, SecurityHooks
 from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
 from gcs_voice.link.tlog import TlogWriter
 from gcs_voice.settings import Settings, load_settings
@@ -36,8 +37,10 @@ class VehicleLink(FlightOperations):
     """``with VehicleLink("udpin:0.0.0.0:14550") as link: link.wait_vehicle(); link.takeoff(1.5)``."""
 
     def __init__(self, connection: str, settings: Settings | None = None, tlog_path: str | Path | None = None,
-                 on_event: Callable[[str], None] | None = None) -> None:
+                 on_event: Callable[[str], None] | None = None, security: LinkSecurity | None = None) -> None:
         self.spec = parse_connection(connection)
+        self.security = security or LinkSecurity()
+        self._guard: SecurityHooks | None = None
         self.settings = settings or load_settings()
         try:
             self.tlog = TlogWriter(tlog_path) if tlog_path else None
@@ -65,6 +68,7 @@ class VehicleLink(FlightOperations):
     # ---- lifetime -------------------------------------------------------------------------------
     def open(self) -> "VehicleLink":
         self._conn = open_connection(self.spec, self.settings.gcs_system_id, self.settings.gcs_component_id)
+        self._guard = self.security.attach(self._conn, self.on_event)   # signing, --lock-vehicle
         self._running = True
         self._thread = threading.Thread(target=self._loop, name="vehicle-link", daemon=True)
         self._thread.start()
@@ -79,6 +83,8 @@ class VehicleLink(FlightOperations):
                 self._conn.close()
             except OSError:
                 pass
+        if self._guard is not None:
+            self._guard.close()
         if self.tlog is not None:
             self.tlog.close()
 
@@ -111,7 +117,8 @@ class VehicleLink(FlightOperations):
         """Wait for a flight controller's HEARTBEAT; LinkError if none comes."""
         state = self.wait_for(lambda s: s.heartbeats > 0 and s.link_ok, timeout_s)
         if state is None:
-            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s")
+            why = self._guard.diagnosis() if self._guard is not None else ""
+            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s{why}")
         return state
 
     def connect(self, timeout_s: float = 30.0) -> VehicleState:
@@ -168,6 +175,8 @@ class VehicleLink(FlightOperations):
                 for collector in self._collectors:
                     collector.take(event)
             self._changed.notify_all()
+        if self._guard is not None:
+            self._guard.observe(msg, self.tracker.state.system_id)
         if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
             self.on_event(f"vehicle now {mode_after}, {'armed' if armed_after else 'disarmed'}")
         for event in events:

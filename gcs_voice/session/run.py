@@ -49,6 +49,8 @@ class SessionConfig:
     subscribers: Sequence[Callable[[Any], None]] = ()
     #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
     setting_overrides: dict[str, float | None] = field(default_factory=dict)
+    #: --signing-key, --require-signed, --lock-vehicle (a gcs_voice.link.security.LinkSecurity; None = none)
+    link_security: Any = None
 
 
 @dataclass
@@ -122,7 +124,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
              argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
              engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-    link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
+    link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said, security=config.link_security)
     exit_code = 1
     try:
         link.open()
