@@ -22,6 +22,7 @@ from gcs_voice.link.acks import AckCollector
 from gcs_voice.link.connection import open_connection, parse_connection
 from gcs_voice.link.setpoints import Setpoint, setpoint_fields
 from gcs_voice.link.operations import FlightOperations
+from gcs_voice.link.readiness import load_rules
 from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
 from gcs_voice.link.tlog import TlogWriter
 from gcs_voice.settings import Settings, load_settings
@@ -45,6 +46,7 @@ class VehicleLink(FlightOperations):
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
+        self.readiness_rules = load_rules()
         self._conn: Any = None
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)

@@ -27,6 +27,7 @@ from typing import Any
 
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.link.readiness import assess
 from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
@@ -59,8 +60,12 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
     if state.north_m_s is not None and state.east_m_s is not None:
         speed = (state.north_m_s ** 2 + state.east_m_s ** 2 + (state.down_m_s or 0.0) ** 2) ** 0.5
     link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
+    ready = None
+    if state.heartbeats and not state.armed:
+        ready = str(assess(state))
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
-            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action,
+            "ready": ready}
 
 
 def _on_ground(state: Any) -> bool:
