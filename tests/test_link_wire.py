@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from gcs_voice.errors import LinkError
 from gcs_voice.link import ACCEPTED, REFUSED, Setpoint, VehicleLink
-from gcs_voice.link.setpoints import TYPE_MASK_VELOCITY_YAW
+from gcs_voice.link.setpoints import TYPE_MASK_POSITION_VELOCITY_YAW
 from gcs_voice.settings import load_settings
 from link_peer import PX4_OFFBOARD, ScriptedVehicle
 
@@ -144,7 +144,8 @@ def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
         assert max(gaps) < 0.5  # > 2 Hz
         for _, sp in vehicle.messages("SET_POSITION_TARGET_LOCAL_NED"):
             assert sp.coordinate_frame == mavutil.mavlink.MAV_FRAME_LOCAL_NED
-            assert sp.type_mask == TYPE_MASK_VELOCITY_YAW and math.isfinite(sp.yaw)
+            # the link's own hold: where the vehicle is, position + velocity + yaw (docs/link.md)
+            assert sp.type_mask == TYPE_MASK_POSITION_VELOCITY_YAW and math.isfinite(sp.yaw)
 
 
 def test_px4_arms_in_hold_when_left_in_offboard(tmp_path: Path) -> None:

@@ -228,7 +228,10 @@ class VehicleLink(FlightOperations):
             yaw = self.last_setpoint.yaw_deg
         else:
             yaw = state.heading_deg if state.heading_deg is not None else 0.0
-        return lambda _state: Setpoint.stop(yaw)
+        hold = Setpoint.stop(yaw)
+        if state.north_m is not None and state.east_m is not None and state.down_m is not None:
+            hold = Setpoint(0.0, 0.0, 0.0, yaw, state.north_m, state.east_m, state.down_m)  # here, position held
+        return lambda _state: hold
 
     def _stream_tick(self) -> None:
         with self._lock:
@@ -255,9 +258,12 @@ class VehicleLink(FlightOperations):
         if state.system_id is None or not state.link_ok:
             return False
         if self._stop_first:
-            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
+            if not setpoint.is_stop:
+                setpoint = Setpoint.stop(setpoint.yaw_deg)
+            self._stop_first = False
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
-        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
+        separately = state.profile.position_axes_separately if state.profile else False
+        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms, separately)
         self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
         self.last_setpoint = setpoint
         self.setpoints_sent += 1
