@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -28,8 +30,13 @@ class SimUsageError(ValueError):
 
 def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tuple[float, float, float] | None = None,
               outs: Sequence[str] = (), tcp: Sequence[str] = (), tlog: Path | None = None,
-              epoch_unix_s: float | None = None) -> SimServer:
-    """A ready SimServer (nothing runs until ``step``/``run_for``/``serve``)."""
+              epoch_unix_s: float | None = None, cold_start_scale: float | None = None) -> SimServer:
+    """A ready SimServer (nothing runs until ``step``/``run_for``/``serve``).
+
+    ``cold_start_scale``: boot like the real autopilot (``autopilot.boot``), its times multiplied by this.
+    """
+    if cold_start_scale is not None and not (math.isfinite(cold_start_scale) and cold_start_scale > 0):
+        raise SimUsageError(f"--boot-scale {cold_start_scale!r}: a positive number")
     if autopilot not in AUTOPILOTS:
         raise SimUsageError(f"--autopilot {autopilot!r}: one of {', '.join(AUTOPILOTS)}")
     links, servers = [], []
@@ -61,6 +68,8 @@ def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tup
     home_fix = (multicopter.home_lat_deg, multicopter.home_lon_deg, multicopter.home_alt_m)
     server = SimServer(vehicle, autopilot, params, home_fix, tlog=TlogWriter(tlog) if tlog else None,
                        epoch_unix_s=epoch_unix_s)
+    if cold_start_scale is not None:
+        server.autopilot.start_cold(cold_start_scale)
     for link in links:
         server.add_link(link)
     for tcp_server in servers:
