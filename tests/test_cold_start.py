@@ -4,7 +4,8 @@ Real parts only: gcs-sim runs as its own process on 127.0.0.1 with ArduCopter's 
 scaled by ``BOOT_SCALE``), the bridge is the real Bridge + VehicleLink + ActionMapper. Checked, per issue
 11: it never arms outside GUIDED / Hold (read from the .tlog: every ARM it sent against the last
 HEARTBEAT mode before it), it says what it waits for, and it flies take-off, a leg, a stop within 0.2 m
-of where "stop" was heard, the height within 0.2 m, then lands and disarms before the session ends.
+of where "stop" was heard, a turn on that point, the height within 0.2 m throughout, then lands and
+disarms before the session ends.
 """
 
 from __future__ import annotations
@@ -93,6 +94,14 @@ def test_cold_start_flight(autopilot: str, bridge_first: bool, tmp_path: Path) -
         assert leg > 0.8, f"the leg flew only {leg:.2f} m"
         assert math.hypot(stopped.north_m - heard.north_m, stopped.east_m - heard.east_m) < 0.2
         assert worst_height < 0.2
+
+        heading0 = stopped.heading_deg
+        bridge.submit(Request("turn_right", "script"))   # a turn holds its point
+        time.sleep(4.0)
+        turned = link.state
+        assert math.hypot(turned.north_m - heard.north_m, turned.east_m - heard.east_m) < 0.2
+        assert abs((turned.heading_deg - heading0 - 90.0 + 180.0) % 360.0 - 180.0) < 8.0
+        assert abs(turned.height_m - start.height_m) < 0.2
 
         land = bridge.submit(Request("land", "script"))
         assert land.done.wait(10)
