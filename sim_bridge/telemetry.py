@@ -45,7 +45,7 @@ def _heartbeat(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _sys_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    present = SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK
+    present = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.prearm_bit_present else 0)
     health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0)
     return mav.sys_status_encode(present, present, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
                                  0, 0, 0, 0, 0, 0)

@@ -100,6 +100,7 @@ def test_px4_cold_start_preflight_checks() -> None:
         ready = g.wait("HEARTBEAT", 4.0, cond=lambda m: m.system_status == M.MAV_STATE_STANDBY)
         assert ready is not None and 3.9 <= g.t_s <= 5.0
         assert g.last("SYS_STATUS").onboard_control_sensors_health & PREARM
+        assert not g.last("SYS_STATUS").onboard_control_sensors_present & PREARM   # health only, as PX4
         assert g.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1) == [ACCEPTED]
     finally:
         g.close()

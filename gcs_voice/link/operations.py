@@ -149,6 +149,8 @@ class FlightOperations:
             state = self.state
             if not state.link_ok:
                 return OperationResult("arm", TIMED_OUT, "link lost while arming")
+            if not getattr(self, "_running", True):   # the link is closing (end of session): arm nothing
+                return OperationResult("arm", TIMED_OUT, "link closed while waiting to arm")
             now = time.monotonic()
             step = next_step(state, now, rules)
             if step.action == READY:

@@ -57,6 +57,8 @@ class Autopilot:
     name = "base"
     mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
     frame_rules: FrameRules
+    #: SYS_STATUS lists MAV_SYS_STATUS_PREARM_CHECK as present/enabled (ArduPilot); PX4 sets it only in health
+    prearm_bit_present = True
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
