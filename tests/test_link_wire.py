@@ -248,3 +248,17 @@ def test_link_check_command_prints_state_and_commands_nothing(capsys) -> None:
     assert "link ok | PX4 sys 1 | mode LOITER | disarmed | ON_GROUND | height 0.00 m | heading 0.0 deg" in out
     assert main(["--connect", "udpin://0.0.0.0:14540"]) == 2
     assert "MAVSDK" in capsys.readouterr().err
+
+
+def test_arm_when_already_armed_changes_nothing(tmp_path: Path) -> None:
+    """"arm" heard while PX4 flies OFFBOARD must not send it to Hold (the arming mode)."""
+    with ScriptedVehicle("px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        vehicle.armed = True
+        link = _link(vehicle, tmp_path)
+        try:
+            assert link.wait_for(lambda s: s.armed is True, 3.0) is not None
+            result = link.arm(timeout_s=2.0)
+            assert result.ok and result.reason == "already armed"
+        finally:
+            link.close()
+        assert not [m for _, m in vehicle.messages("COMMAND_LONG") if m.command in (176, 400)]

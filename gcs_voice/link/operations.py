@@ -142,6 +142,8 @@ class FlightOperations:
         state, problem = self._vehicle("arm")
         if problem:
             return problem
+        if state.armed:   # e.g. "arm" heard in flight: leave the mode alone (PX4 flies OFFBOARD, not Hold)
+            return OperationResult("arm", ACCEPTED, "already armed")
         rules = self.readiness_rules
         deadline = time.monotonic() + (self.ready_timeout_s if timeout_s is None else timeout_s)
         said, last, next_home_request = "", None, time.monotonic()
