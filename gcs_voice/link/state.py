@@ -219,7 +219,9 @@ class VehicleStateTracker:
             self.state, profile=profile, mav_type=msg.type, base_mode=msg.base_mode, custom_mode=msg.custom_mode,
             mode=mode, armed=armed, system_status=msg.system_status, heartbeats=self.state.heartbeats + 1,
             heartbeat_s=now_s, mode_since_s=since if since is not None else now_s,
-            prearm_text=None if armed else self.state.prearm_text,
+            # a complaint made while booting ("Arm: System not initialised") is stale once the boot is over
+            prearm_text=None if armed or (self.state.system_status == mavlink.MAV_STATE_BOOT
+                                          and msg.system_status != mavlink.MAV_STATE_BOOT) else self.state.prearm_text,
         )
 
     def _sys_status(self, msg: Any, now_s: float) -> None:
