@@ -5,6 +5,8 @@
 
 from __future__ import annotations
 
+import math
+
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -30,9 +32,13 @@ class SimUsageError(ValueError):
 def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tuple[float, float, float] | None = None,
               outs: Sequence[str] = (), tcp: Sequence[str] = (), tlog: Path | None = None,
               epoch_unix_s: float | None = None, signing_key: bytes | None = None,
-              allow: Sequence[str] = ()) -> SimServer:
+              allow: Sequence[str] = (), cold_start_scale: float | None = None) -> SimServer:
     """A ready SimServer (nothing runs until ``step``/``run_for``/``serve``). ``signing_key``: 32 bytes
-    (``sim_bridge.signing.key_from_flag``); ``allow``: ``--allow`` values (``sim_bridge.access``)."""
+    (``sim_bridge.signing.key_from_flag``); ``allow``: ``--allow`` values (``sim_bridge.access``);
+    ``cold_start_scale``: boot like the real autopilot (``autopilot.boot``), its times multiplied by this.
+    """
+    if cold_start_scale is not None and not (math.isfinite(cold_start_scale) and cold_start_scale > 0):
+        raise SimUsageError(f"--boot-scale {cold_start_scale!r}: a positive number")
     if autopilot not in AUTOPILOTS:
         raise SimUsageError(f"--autopilot {autopilot!r}: one of {', '.join(AUTOPILOTS)}")
     links, servers = [], []
@@ -70,6 +76,8 @@ def build_sim(autopilot: str = "ardupilot", room: str = "living_room", home: tup
     if signing_key is not None:
         server.signing.set_key(signing_key, 0)
     server.peer_filter = peer_filter
+    if cold_start_scale is not None:
+        server.autopilot.start_cold(cold_start_scale)
     for link in links:
         server.add_link(link)
     for tcp_server in servers:

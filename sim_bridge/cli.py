@@ -44,6 +44,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--home", metavar="LAT,LON,ALT", help="home position in degrees and metres AMSL (default: the room's)")
     p.add_argument("--tlog", metavar="FILE", type=Path,
                    help="write everything sent and received to this .tlog (mavlogdump.py reads it)")
+    p.add_argument("--cold-start", action="store_true",
+                   help="boot like the real autopilot (ArduCopter: BOOT 2 s, a mode set then is reset to STABILIZE, "
+                        "arming refused with its 'Arm: ...' texts until the EKF has a position after ~41 s; PX4: "
+                        "pre-flight checks fail for ~4 s); default: ready to arm after 2.5 s")
+    p.add_argument("--boot-scale", type=float, metavar="S",
+                   help="with --cold-start: multiply the boot's times by S (0.1: ArduCopter has a position after 4 s)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S simulated seconds (default: run until Ctrl-C)")
     p.add_argument("--signing-key", metavar="PASSPHRASE|@FILE",
                    help="MAVLink 2 signing with SHA-256(PASSPHRASE) as the key (MAVProxy's 'signing setup'): sign "
@@ -93,9 +99,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
             raise SimUsageError("--duration: a positive number of seconds")
         outs = args.out or ([] if args.tcp else [DEFAULT_OUT])
+        if args.boot_scale is not None and not args.cold_start:
+            raise SimUsageError("--boot-scale needs --cold-start")
+        scale = (1.0 if args.boot_scale is None else args.boot_scale) if args.cold_start else None
         key = None if args.signing_key is None else key_from_flag(args.signing_key)
         server = build_sim(args.autopilot, args.room, home, outs, args.tcp, args.tlog, signing_key=key,
-                           allow=args.allow)
+                           allow=args.allow, cold_start_scale=scale)
     except (SimUsageError, TransportError, RoomError, ParamsError, SigningKeyError, AccessError) as exc:
         print(f"gcs-sim: error: {exc}", file=sys.stderr)
         return 2

@@ -65,3 +65,25 @@ def test_session_paths_never_overwrite(tmp_path: Path) -> None:
     second = session_paths(tmp_path)
     assert second[0] != first[0] and second[0].suffix == ".tlog" and second[1].suffix == ".jsonl"
     assert session_paths(tmp_path, "named") == (tmp_path / "named.tlog", tmp_path / "named.jsonl")
+
+
+def test_view_says_what_the_vehicle_waits_for() -> None:
+    """Disarmed: the vehicle panel shows the readiness line (link.readiness), from a real VehicleState."""
+    from rich.console import Console
+
+    from gcs_voice.link.autopilots import ARDUPILOT
+    from gcs_voice.link.state import VehicleState
+    from gcs_voice.session.bridge import status_of
+
+    booting = VehicleState(system_id=1, profile=ARDUPILOT, heartbeats=3, armed=False, mode="GUIDED",
+                           system_status=3, sensors_present=0x10000000, sensors_enabled=0x10000000,
+                           sensors_health=0, ekf_flags=167, prearm_text="PreArm: Need Position Estimate",
+                           last_heard_s=0.0, link_ok=True)
+    status = status_of(booting, "take_off")
+    assert status["ready"] == ("waiting for: pre-arm checks, position (EKF) "
+                               "(vehicle: PreArm: Need Position Estimate)")
+    console = Console(width=140, record=True, file=io.StringIO())
+    console.print(render(ViewState(), status))
+    assert "waiting for: pre-arm checks, position (EKF)" in console.export_text()
+    armed = status_of(VehicleState(system_id=1, profile=ARDUPILOT, heartbeats=3, armed=True), "stop")
+    assert armed["ready"] is None

@@ -80,8 +80,12 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
 
         start = link.state
         _fly(link, mapper, "go_forward", 3.0)
-        _fly(link, mapper, "stop", 1.5)
+        heard = link.state
+        _fly(link, mapper, "stop", 3.0)
         moved = link.state
+        # stop holds where it was heard (overshoot flown back), and the leg held its height
+        assert math.hypot(moved.north_m - heard.north_m, moved.east_m - heard.east_m) < 0.2
+        assert abs(moved.height_m - start.height_m) < 0.2
         forward_m = (moved.north_m - start.north_m) * math.cos(math.radians(heading0)) + \
                     (moved.east_m - start.east_m) * math.sin(math.radians(heading0))
         sideways_m = -(moved.north_m - start.north_m) * math.sin(math.radians(heading0)) + \
@@ -142,7 +146,10 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
             setpoint_t.append(msg._timestamp)
         elif msg.command == 176:
             mode_requests.append((msg._timestamp, msg.param2, msg.param3))
-    assert encodings == {(1, 2503)}
+    # docs/link.md: stop/turn carry position + velocity + yaw (2496) on both; PX4's horizontal legs hold their
+    # height (2499) and vertical ones their point (2500); ArduCopter drops a partial position, so 2503
+    expected = {(1, 2496), (1, 2499), (1, 2500)} if autopilot == "px4" else {(1, 2496), (1, 2503)}
+    assert encodings == expected
     if autopilot == "px4":  # OFFBOARD asked for only after >= 0.5 s of setpoints at > 2 Hz
         offboard_t = [t for t, main, sub in mode_requests if (main, sub) == (6, 0)]
         assert offboard_t

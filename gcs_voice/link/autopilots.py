@@ -34,6 +34,9 @@ class AutopilotProfile:
     arm_mode: str
     #: True: DO_SET_MODE is acknowledged twice and the first ACK is always ACCEPTED (PX4)
     double_mode_ack: bool
+    #: True: SET_POSITION_TARGET_LOCAL_NED honours each x/y/z ignore bit on its own (PX4); False: any one
+    #: set drops the whole position (ArduCopter), so a height-only hold cannot ride with a velocity
+    position_axes_separately: bool
 
     def mode_name(self, base_mode: int, custom_mode: int) -> str:
         if self.name == "PX4":
@@ -60,10 +63,12 @@ class AutopilotProfile:
 ARDUPILOT = AutopilotProfile(
     name="ArduPilot", velocity_mode="GUIDED", land_mode="LAND", needs_prestream=False,
     takeoff_alt_is_amsl=False, arm_in_velocity_mode=True, arm_mode="GUIDED", double_mode_ack=False,
+    position_axes_separately=False,
 )
 PX4 = AutopilotProfile(
     name="PX4", velocity_mode="OFFBOARD", land_mode="LAND", needs_prestream=True,
     takeoff_alt_is_amsl=True, arm_in_velocity_mode=False, arm_mode="LOITER", double_mode_ack=True,
+    position_axes_separately=True,
 )
 
 

@@ -22,6 +22,7 @@ from gcs_voice.link.acks import AckCollector
 from gcs_voice.link.connection import open_connection, parse_connection
 from gcs_voice.link.setpoints import Setpoint, setpoint_fields
 from gcs_voice.link.operations import FlightOperations
+from gcs_voice.link.readiness import load_rules
 from gcs_voice.link.security import LinkSecurity, SecurityHooks
 from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
 from gcs_voice.link.tlog import TlogWriter
@@ -48,6 +49,7 @@ class VehicleLink(FlightOperations):
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
+        self.readiness_rules = load_rules()
         self._conn: Any = None
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
@@ -235,7 +237,10 @@ class VehicleLink(FlightOperations):
             yaw = self.last_setpoint.yaw_deg
         else:
             yaw = state.heading_deg if state.heading_deg is not None else 0.0
-        return lambda _state: Setpoint.stop(yaw)
+        hold = Setpoint.stop(yaw)
+        if state.north_m is not None and state.east_m is not None and state.down_m is not None:
+            hold = Setpoint(0.0, 0.0, 0.0, yaw, state.north_m, state.east_m, state.down_m)  # here, position held
+        return lambda _state: hold
 
     def _stream_tick(self) -> None:
         with self._lock:
@@ -262,9 +267,12 @@ class VehicleLink(FlightOperations):
         if state.system_id is None or not state.link_ok:
             return False
         if self._stop_first:
-            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
+            if not setpoint.is_stop:
+                setpoint = Setpoint.stop(setpoint.yaw_deg)
+            self._stop_first = False
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
-        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
+        separately = state.profile.position_axes_separately if state.profile else False
+        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms, separately)
         self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
         self.last_setpoint = setpoint
         self.setpoints_sent += 1

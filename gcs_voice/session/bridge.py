@@ -13,7 +13,9 @@ Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) a
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
 - whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
-  which commands a stop and keeps it on the wire before the link closes.
+  which commands a stop and keeps it on the wire before the link closes;
+- a session that ends after an accepted "land" waits (``readiness.toml`` [landing] timeout_s) until the
+  vehicle reports itself landed (EXTENDED_SYS_STATE) and disarmed (HEARTBEAT), and says which it saw.
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ from typing import Any
 
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.link.readiness import assess
 from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
@@ -36,6 +39,8 @@ LOOP_PERIOD_S = 0.05
 FINAL_STOP_S = 0.6
 #: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
 ON_GROUND_HEIGHT_M = 0.2
+#: when the link has no readiness rules (a test double): how long to wait for landed and disarmed
+DEFAULT_LANDED_TIMEOUT_S = 40.0
 
 
 @dataclass
@@ -59,8 +64,12 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
     if state.north_m_s is not None and state.east_m_s is not None:
         speed = (state.north_m_s ** 2 + state.east_m_s ** 2 + (state.down_m_s or 0.0) ** 2) ** 0.5
     link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
+    ready = None
+    if state.heartbeats and not state.armed:
+        ready = str(assess(state))
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
-            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action,
+            "ready": ready}
 
 
 def _on_ground(state: Any) -> bool:
@@ -88,6 +97,7 @@ class Bridge:
         self._limit_reason = ""
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
+        self._landing = False  # an accepted "land" not yet followed by a take-off: the end waits for touchdown
 
     # ---- inputs (any thread) ----------------------------------------------------------------------
     def submit(self, request: Request) -> Request:
@@ -242,6 +252,9 @@ class Bridge:
             request.accepted = ok
             if ok and action == "take_off":
                 self.flying_ready.set()
+                self._landing = False
+            if ok and action == "land":
+                self._landing = True
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
         finally:
@@ -265,7 +278,12 @@ class Bridge:
 
     # ---- the end ------------------------------------------------------------------------------------
     def shutdown(self) -> None:
-        """Stop the vehicle (hold at the heading target) and keep that on the wire before returning."""
+        """Stop the vehicle (hold where it is) and keep that on the wire; after "land", wait for touchdown."""
+        if self._busy == "land" and self._op_thread is not None:
+            self._op_thread.join(timeout=float(getattr(self.link.settings, "mode_confirm_s", 3.0)) + 5.0)
+        if self._landing and not self._interrupted:
+            self._wait_landed()
+            return
         try:
             state = self.link.state
             in_velocity_mode = state.profile is None or state.mode == state.profile.velocity_mode
@@ -280,3 +298,29 @@ class Bridge:
                 time.sleep(FINAL_STOP_S)
         except Exception as exc:  # the link itself may be what failed
             self.bus.emit("error", f"could not command the final stop: {exc}")
+
+    def _wait_landed(self) -> None:
+        """Wait for EXTENDED_SYS_STATE ON_GROUND and a disarmed HEARTBEAT, within the time limit; say which."""
+        rules = getattr(self.link, "readiness_rules", None)
+        limit_s = getattr(rules, "landed_timeout_s", DEFAULT_LANDED_TIMEOUT_S)
+        start = time.monotonic()
+        self.bus.emit("flight", f"waiting up to {limit_s:g} s for the vehicle to land and disarm", what="landed",
+                      ok=None, detail="waiting")
+        try:
+            done = self.link.wait_for(lambda s: (s.armed is False and _on_ground(s)) or not s.link_ok
+                                      or self._interrupted, limit_s)
+        except Exception as exc:  # the link itself may be what failed
+            self.bus.emit("error", f"could not watch the landing: {exc}")
+            return
+        state = self.link.state
+        took = time.monotonic() - start
+        if done is not None and done.armed is False and _on_ground(done):
+            self.bus.emit("flight", f"landed and disarmed ({took:.1f} s after the session ended)", what="landed",
+                          ok=True, detail=f"landed_state {done.landed_state}, disarmed")
+            return
+        why = ("link lost" if not state.link_ok else "interrupted" if self._interrupted
+               else f"not seen within {limit_s:g} s")
+        self.bus.emit("warning", f"landing not confirmed ({why}): mode {state.mode}, "
+                      f"{'armed' if state.armed else 'disarmed'}, landed state {state.landed_state or '?'}, "
+                      f"height {state.height_m if state.height_m is None else round(state.height_m, 2)} m",
+                      source="bridge")

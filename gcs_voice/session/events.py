@@ -24,6 +24,7 @@ KINDS: dict[str, str] = {
     "command": "an action sent to the vehicle: action, phrase, score, origin (voice|key|script), setpoint",
     "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",
     "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
+    "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",

@@ -116,7 +116,10 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         bus.subscribe(HeadlessPrinter(as_json=config.as_json))
 
     def link_said(line: str) -> None:
-        if line.startswith("vehicle: "):
+        if line.startswith(("waiting for: ", "set mode: ", "arm: ready")):  # link.readiness, while arming
+            waiting = line.removeprefix("waiting for: ").split(" (vehicle: ")[0] if line.startswith("waiting") else ""
+            bus.emit("ready", line, waiting_for=waiting)
+        elif line.startswith("vehicle: "):
             bus.emit("vehicle", line, text=line.removeprefix("vehicle: "))
         elif not line.startswith("link "):  # link transitions are said by the bridge, once
             bus.emit("warning", line, source="link")
@@ -149,7 +152,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
             ready = bridge.flying_ready
         if steps:
             start_voice_thread(bridge, run_script, pipeline, bridge, steps, 0.0, ready,
-                               settings.arm_timeout_s + settings.takeoff_timeout_s + 30.0)
+                               link.ready_timeout_s + settings.takeoff_timeout_s + 30.0)
         else:
             from gcs_voice.audio.microphone import microphone_utterances
             from gcs_voice.session.keys import talk

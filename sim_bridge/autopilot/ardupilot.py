@@ -30,6 +30,8 @@ ARMABLE_MODES = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 POSITION_CONTROLLED_MODES = frozenset({GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE})
 ALWAYS_ON_FLAGS = (mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
                    | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
+#: Modes that need a position from the EKF: refused armed without one, and their arming checks ask for it.
+NEEDS_POSITION_MODES = frozenset({GUIDED, LOITER, RTL, POSHOLD, BRAKE})
 #: ArduCopter's takeoff climb seen in SITL (peak 1.23 m/s to 2 m); PILOT_SPEED_UP caps it.
 TAKEOFF_CLIMB_M_S = 1.25
 
@@ -44,7 +46,20 @@ class ArduCopter(Autopilot):
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode = STABILIZE
+        self._resets_done = 0
+        self._next_prearm_s = math.inf
         super().__init__(*args, **kwargs)
+
+    def start_cold(self, scale: float = 1.0) -> None:
+        super().start_cold(scale)
+        if self.cold.prearm_report_s > 0:
+            self._next_prearm_s = self.cold.prearm_report_s
+
+    def _arm_refusals(self, mode: int) -> tuple[str, ...]:
+        """The cold start's "Arm: ..." checks that fail now for ``mode`` (none without --cold-start)."""
+        if self.cold is None:
+            return ()
+        return self.cold.arm_refusals(self.now_s, mode in NEEDS_POSITION_MODES)
 
     # ----------------------------------------------------------------- state
     def apply_params(self) -> None:
@@ -89,7 +104,8 @@ class ArduCopter(Autopilot):
         return base, self.mode, status
 
     def armable(self) -> bool:
-        return self.booted and not self.vehicle.armed and self.mode in ARMABLE_MODES
+        return (self.booted and not self.vehicle.armed and self.mode in ARMABLE_MODES
+                and not self._arm_refusals(self.mode))
 
     def position_target(self) -> tuple | None:
         if self.mode != GUIDED or self.vehicle.behaviour is not Behaviour.VELOCITY:
@@ -113,6 +129,11 @@ class ArduCopter(Autopilot):
             return mavlink.MAV_RESULT_FAILED
         if number == self.mode:
             return mavlink.MAV_RESULT_ACCEPTED
+        if self.vehicle.armed and number in NEEDS_POSITION_MODES and not self.has_position():
+            # disarmed, the mode checks are skipped (the arming checks catch it); armed, they are not
+            self.out.text(mavlink.MAV_SEVERITY_WARNING,
+                          f"Mode change to {mavutil.mode_mapping_acm[number]} failed: requires position")
+            return mavlink.MAV_RESULT_FAILED
         self.mode = number
         self._enter_mode()
         self.out.send_heartbeat_now()
@@ -176,6 +197,11 @@ class ArduCopter(Autopilot):
         if self.mode not in ARMABLE_MODES and not forced:
             self.out.text(mavlink.MAV_SEVERITY_CRITICAL, "Arm: Mode not armable")
             return mavlink.MAV_RESULT_FAILED
+        refusals = () if forced else self._arm_refusals(self.mode)
+        for text in refusals:
+            self.out.text(mavlink.MAV_SEVERITY_CRITICAL, text)
+        if refusals:
+            return mavlink.MAV_RESULT_FAILED
         vehicle.arm()
         self.out.text(mavlink.MAV_SEVERITY_INFO, "Arming motors")
         self.out.send_now(mavlink.MAVLINK_MSG_ID_HOME_POSITION)   # home is (re)set at arming
@@ -215,8 +241,25 @@ class ArduCopter(Autopilot):
 
     def update(self, events: list[VehicleEvent]) -> None:
         super().update(events)
+        if self.cold is not None:
+            self._cold_boot_rules()
         for event in events:
             if event in (VehicleEvent.DISARMED_LANDED, VehicleEvent.DISARMED_IDLE):
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
             elif event is VehicleEvent.RTL_LANDING:
                 pass   # ArduCopter stays in RTL through its final descent
+
+    def _cold_boot_rules(self) -> None:
+        """End of initialisation and the RC mode switch reset the mode; the pre-arm report while not ready."""
+        cold = self.cold
+        resets = cold.mode_resets_s
+        while self._resets_done < len(resets) and self.now_s >= resets[self._resets_done]:
+            self._resets_done += 1
+            if self.mode != STABILIZE and not self.vehicle.armed:
+                self.mode = STABILIZE
+                self._enter_mode()
+                self.out.send_heartbeat_now()
+        if self.now_s >= self._next_prearm_s:
+            self._next_prearm_s += cold.prearm_report_s
+            if self.booted and not self.vehicle.armed and self._arm_refusals(GUIDED) and cold.prearm_text:
+                self.out.text(mavlink.MAV_SEVERITY_CRITICAL, cold.prearm_text)

@@ -14,6 +14,7 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.autopilot.boot import ColdBoot
 from sim_bridge.params import ParamStore
 from sim_bridge.setpoints import FrameRules, SetpointRejected, decode_setpoint
 from sim_bridge.vehicle import Vehicle, VehicleEvent
@@ -56,6 +57,8 @@ class Autopilot:
     name = "base"
     mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
     frame_rules: FrameRules
+    #: SYS_STATUS lists MAV_SYS_STATUS_PREARM_CHECK as present/enabled (ArduPilot); PX4 sets it only in health
+    prearm_bit_present = True
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
@@ -71,6 +74,9 @@ class Autopilot:
         self.streams: dict = data["streams"]
         self.rejected_setpoints = 0
         self.booted = False
+        self._data = data
+        #: the real autopilot's boot timeline (``start_cold``), or None: ready after ``boot_s``
+        self.cold: ColdBoot | None = None
         params.on_change(lambda _name, _value: self.apply_params())
         self.apply_params()
 
@@ -84,6 +90,23 @@ class Autopilot:
 
     def time_unix_usec(self) -> int:
         return int((self.epoch_unix_s + self.now_s) * 1e6)
+
+    def start_cold(self, scale: float = 1.0) -> None:
+        """Boot like the real autopilot (``[cold_start]`` of the personality's TOML), times multiplied by ``scale``."""
+        self.cold = ColdBoot.from_data(self._data["cold_start"], scale)
+        self.boot_s = self.cold.init_end_s
+
+    def has_position(self) -> bool:
+        """The estimator has a position (always, unless a cold start is still converging)."""
+        return self.cold is None or self.cold.has_position(self.now_s)
+
+    def ekf_flags(self) -> int:
+        """EKF_STATUS_REPORT.flags: ArduCopter's values before and after "EKF3 is using GPS"."""
+        if self.cold is not None:
+            flags = self.cold.ekf_flags(self.now_s)
+            if flags is not None:
+                return flags
+        return 831 if self.booted and self.has_position() else 167
 
     # ----------------------------------------------------------------- hooks
     def apply_params(self) -> None:
@@ -117,6 +140,9 @@ class Autopilot:
         return []
 
     def update(self, events: list[VehicleEvent]) -> None:
+        if self.cold is not None:
+            for line in self.cold.texts_due(self.now_s):
+                self.out.text(mavlink.MAV_SEVERITY_INFO, line)
         if not self.booted and self.now_s >= self.boot_s:
             self.booted = True
             for line in self.texts.get("boot", []):
