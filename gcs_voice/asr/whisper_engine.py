@@ -23,7 +23,7 @@ import numpy as np
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
 from gcs_voice.asr.settings import engine_settings
-from gcs_voice.asr.whisper_score import canonical_tokens
+from gcs_voice.asr.whisper_score import canonical_tokens, phrase_forms, score_utterance, trim_silence
 from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
 from gcs_voice.domain.text import normalize_text
@@ -63,7 +63,8 @@ class WhisperRecognizer:
         if not self.model.model.is_multilingual and set(self.languages) - {"en"}:
             raise ModelError(f"Whisper model {resolved} is English-only; it cannot do {', '.join(self.languages)}")
         self._prompts: dict[str, list[int]] = {}
-        self._phrase_priors: dict[str, list[float]] = {}
+        self._forms: dict = {}  # language -> whisper_score.PhraseForms
+        self._tokenizers: dict = {}
 
     @classmethod
     def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
@@ -81,9 +82,13 @@ class WhisperRecognizer:
 
     # -- decoding ---------------------------------------------------------------------------------
     def tokenizer(self, lang: str):
+        """Whisper's tokenizer set for ``lang`` (made once per language)."""
         from faster_whisper.tokenizer import Tokenizer
 
-        return Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual, task="transcribe", language=lang)
+        if lang not in self._tokenizers:
+            self._tokenizers[lang] = Tokenizer(self.model.hf_tokenizer, self.model.model.is_multilingual,
+                                               task="transcribe", language=lang)
+        return self._tokenizers[lang]
 
     def _prompt(self, lang: str) -> list[int]:
         """The dictionary's words as the previous-text prompt (domain bias), then the task tokens.
@@ -174,66 +179,51 @@ class WhisperRecognizer:
 
     # -- mode "score" -----------------------------------------------------------------------------
     def encode_short(self, audio: np.ndarray):
-        """Encoder output of the audio plus ``score_pad_s`` of silence (not a 30 s window), and its
-        frame count: what scoring mode scores phrases on (public for the tools that sweep it)."""
-        pad = np.zeros(int(float(self.settings.get("score_pad_s", 1.0)) * SAMPLE_RATE), dtype=np.float32)
-        features = self.model.feature_extractor(np.concatenate([audio[: 28 * SAMPLE_RATE], pad]))[:, :-1]
+        """Encoder output of the utterance, trimmed of leading/trailing silence, plus ``score_pad_s`` of
+        silence (not a 30 s window), and its mel frame count: what scoring mode judges phrases on."""
+        s = self.settings
+        if s.get("score_trim", True):
+            audio = trim_silence(audio)
+        # Whisper was trained on 30 s windows: a window much shorter than that makes it mishear short
+        # words ("Up" -> "Ah"); score_window_s is the accuracy/time trade-off (docs/bench/real.md).
+        audio = audio[: 28 * SAMPLE_RATE]
+        window = max(audio.size + int(float(s.get("score_pad_s", 0.3)) * SAMPLE_RATE),
+                     int(float(s.get("score_window_s", 0.0)) * SAMPLE_RATE))
+        padded = np.zeros(window, dtype=np.float32)
+        padded[: audio.size] = audio
+        features = self.model.feature_extractor(padded)[:, :-1]
         return self.model.encode(features), features.shape[-1]
 
-    def phrase_priors(self, lang: str) -> list[float]:
-        """Every phrase of ``lang`` scored on one second of silence (once per language)."""
-        from gcs_voice.asr.whisper_score import phrase_logprobs
-
-        if lang not in self._phrase_priors:
-            encoded, frames = self.encode_short(np.zeros(SAMPLE_RATE, dtype=np.float32))
-            self._phrase_priors[lang] = phrase_logprobs(self.model.model, encoded, self.tokenizer(lang),
-                                                        self.dictionaries[lang], frames,
-                                                        int(self.settings.get("score_batch_size", 8)))
-        return self._phrase_priors[lang]
+    def phrase_forms(self, lang: str):
+        """The dictionary's phrases tokenised as Whisper writes them (once per language)."""
+        if lang not in self._forms:
+            self._forms[lang] = phrase_forms(self.tokenizer(lang), self.dictionaries[lang])
+        return self._forms[lang]
 
     def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
-        """Every phrase of the language scored on a short encoder window; free decoding as evidence."""
-        from gcs_voice.asr.whisper_score import class_gap, class_posteriors, collapse_repeats, score_phrases
-
+        """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""
         s = self.settings
         encoded, frames = self.encode_short(audio)
-        lang, lang_prob, known_mass = self.detect(encoded, fixed_lang)
-        weight, batch = float(s.get("score_prior_weight", 0.6)), int(s.get("score_batch_size", 8))
-        # --lang auto: every loaded language is scored and the best phrase picks the language (Whisper's
-        # language detection on a short window calls espeak-ng Spanish English; dev raw: language right
-        # 77/90 vs 74/90, class right 64/76 vs 55/76, at twice the scoring time).
-        candidates = [lang] if fixed_lang is not None else list(self.languages)
-        scored = {code: score_phrases(self.model.model, encoded, self.tokenizer(code), self.dictionaries[code],
-                                      frames, self.phrase_priors(code), weight, batch) for code in candidates}
-        lang = max(candidates, key=lambda code: scored[code][0].logprob if scored[code] else -math.inf)
-        if fixed_lang is None:
-            _, lang_prob, _ = self.detect(encoded, lang)  # the chosen language's detection probability
-        scores = scored[lang]
-        tokenizer = self.tokenizer(lang)
-        prompt = self._prompt(lang)  # mode "score": no dictionary prompt
-        free = self.model.model.generate(
-            encoded, [prompt], max_length=len(prompt) + int(s.get("max_new_tokens", 16)),
-            beam_size=int(s.get("score_free_beam_size", 2)), return_scores=True, return_no_speech_prob=True,
-            suppress_blank=True, suppress_tokens=[-1],
-        )[0]
-        tokens = free.sequences_ids[0]
-        free_logprob = free.scores[0] * len(tokens) / (len(tokens) + 1)  # as faster-whisper recovers it
-        posterior = class_posteriors(scores, float(s.get("score_temperature", 0.25)))
-        hypotheses = []
-        for item in scores[: int(s.get("score_alternatives", 5))]:
-            # confidence = the class' share of the softmax over all phrases (synonyms add up)
-            hypotheses.append(Hypothesis(item.phrase.text, confidence=posterior[item.phrase.action],
-                                         score=item.logprob))
+        candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
+        scored = {code: score_utterance(self.model.model, self.tokenizer(code), self.phrase_forms(code), encoded,
+                                        frames, int(s.get("score_max_new_tokens", 6)), int(s.get("score_top_k", 8)))
+                  for code in candidates}
+        # --lang auto: the best phrase over the loaded languages picks the language (Whisper's language
+        # detection on a short window calls espeak-ng Spanish English).
+        lang = max(candidates, key=lambda code: scored[code].best[1] if scored[code].best else -math.inf)
+        result = scored[lang]
         extra = {
-            "language_probability": lang_prob,
-            "dictionary_language_mass": known_mass,
-            "no_speech_prob": float(free.no_speech_prob),
-            "free_logprob": float(free_logprob),
-            "phrase_score": scores[0].logprob if scores else -math.inf,
-            "class_gap": min(class_gap(scores), 99.0),
+            "no_speech_prob": result.no_speech_prob,
+            "free_logprob": result.free_logprob if math.isfinite(result.free_logprob) else -99.0,
+            "phrase_score": result.best[1] if result.best else -99.0,
+            "margin": max(result.margin, -99.0),
+            "class_gap": min(result.class_gap, 99.0),
         }
-        transcript = collapse_repeats(tokenizer.decode(tokens).strip())
-        return Recognition(tuple(hypotheses), self.name, lang, audio_s, extra, transcript=transcript)
+        if fixed_lang is None:
+            _, extra["language_probability"], extra["dictionary_language_mass"] = self.detect(encoded, lang)
+        hypotheses = tuple(Hypothesis(phrase.text, confidence=math.exp(min(0.0, score)), score=score)
+                           for phrase, score in result.ranked[: int(s.get("score_alternatives", 5))])
+        return Recognition(hypotheses, self.name, lang, audio_s, extra, transcript=result.free_text)
 
 
 class WhisperStream(BufferedStream):

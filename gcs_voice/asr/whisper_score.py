@@ -1,44 +1,38 @@
-"""Whisper as a closed-set classifier: every dictionary phrase scored under Whisper's own decoder.
+"""Whisper as a closed-set judge: is *this* dictionary phrase what was said, compared with what Whisper hears?
 
-Free decoding on short commands lists dictionary words or loops; forcing each phrase instead
-(teacher forcing, CTranslate2 ``Whisper.align``, the call faster-whisper uses for word
-probabilities) asks "how probable is *this* transcript of this audio?" for all phrases in one
-encoder pass. A phrase is written the way Whisper transcribes it (capital first letter, final
-period: ``align`` masks end-of-text, and the period is what stops "Go." from winning over "Go up.").
+For one utterance, on ONE short encoder pass (the trimmed utterance plus a little silence, not a 30 s
+window):
 
-Three things make the scores comparable across phrases (measured on the dev split, docs/bench/accuracy.md):
-- the encoder sees the utterance plus a short silence, not a 30 s window (accuracy
-  and time against the 30 s window: docs/bench/accuracy.md, paired and Timing tables);
-- a phrase's score is its mean token log-probability *minus* ``prior_weight`` x the same on silence:
-  how much the audio raises the phrase, not how common the phrase is ("Go ahead." was winning on
-  anything unclear);
-- phrases are tokenised the way the model emits them (:func:`canonical_tokens`).
+1. Whisper transcribes freely, greedily, a few tokens at most (its own opinion of the audio);
+2. every dictionary phrase (written as Whisper writes it, " Go up." and " go up.") is ranked by what
+   that greedy pass already knows of it (the log-probabilities of its tokens along the greedy path up to
+   where it leaves the path); only the ``top_k`` most promising are scored, since each costs a decoder
+   pass over the encoder output;
+3. those phrases AND the free transcript are teacher-forced in ONE batched decoder call
+   (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio.
+
+The evidence for a decision is the **margin**: the best phrase's mean log-probability minus that of
+Whisper's own transcript. It is 0 when Whisper itself heard a dictionary phrase, slightly negative
+when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
+memoria" heard perfectly does not become "derecha"). One threshold on it (``min_margin`` in
+``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.bench_real tune``).
 """
 
 from __future__ import annotations
 
 import math
-import re
 from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
 
+from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 
-__all__ = ["PhraseScore", "canonical_tokens", "phrase_tokens", "phrase_logprobs", "score_phrases",
-           "class_posteriors", "class_gap", "collapse_repeats"]
+__all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
+           "score_utterance"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
-
-
-@dataclass(frozen=True)
-class PhraseScore:
-    """One phrase's score: mean token log-probability on the audio minus the weighted prior."""
-
-    phrase: Phrase
-    dictionary: Dictionary
-    logprob: float
 
 
 def canonical_tokens(tokenizer, text: str) -> list[int]:
@@ -65,80 +59,165 @@ def canonical_tokens(tokenizer, text: str) -> list[int]:
     return out
 
 
-def phrase_tokens(tokenizer, phrase: Phrase) -> list[int]:
-    """The tokens Whisper would emit for this phrase (" Turn left.")."""
-    return canonical_tokens(tokenizer, " " + phrase.text[:1].upper() + phrase.text[1:] + ".")
+@dataclass(frozen=True)
+class PhraseForms:
+    """Every phrase of one dictionary in the written forms Whisper uses, tokenised once per language.
+
+    A phrase is written " Go up." (capital, final period: ``align`` masks end-of-text, and the period
+    is what stops " Go." from beating " Go up.") and " go up." (Whisper often writes a lone command
+    word in lower case); a phrase scores as its best form.
+    """
+
+    dictionary: Dictionary
+    phrases: tuple[Phrase, ...]        # one entry per form
+    tokens: tuple[tuple[int, ...], ...]
 
 
-def phrase_logprobs(model, encoder_output, tokenizer, dictionary: Dictionary, num_frames: int,
-                    batch_size: int = 8) -> list[float]:
-    """Mean token log-probability of every phrase of ``dictionary`` (its order) on one encoder output.
+def phrase_forms(tokenizer, dictionary: Dictionary) -> PhraseForms:
+    """The forms of every phrase of ``dictionary`` (see :class:`PhraseForms`)."""
+    phrases: list[Phrase] = []
+    tokens: list[tuple[int, ...]] = []
+    for phrase in dictionary.phrases:
+        written = {phrase.text[:1].upper() + phrase.text[1:], phrase.text[:1].lower() + phrase.text[1:]}
+        for text in sorted(written):
+            phrases.append(phrase)
+            tokens.append(tuple(canonical_tokens(tokenizer, " " + text + ".")))
+    return PhraseForms(dictionary, tuple(phrases), tuple(tokens))
 
-    ``model`` is the ``ctranslate2.models.Whisper``; the encoder output is repeated, not recomputed,
-    ``batch_size`` times per call. On an encoded silence this is the phrases' prior.
+
+def _frame_power_db(audio: np.ndarray, frame: int = 400, hop: int = 160) -> np.ndarray:
+    if audio.size < frame:
+        audio = np.pad(audio, (0, frame - audio.size))
+    n = 1 + (audio.size - frame) // hop
+    idx = np.arange(frame)[None, :] + hop * np.arange(n)[:, None]
+    return 10.0 * np.log10(np.mean(audio[idx].astype(np.float64) ** 2, axis=1) + 1e-12)
+
+
+def trim_silence(audio: np.ndarray, rel_db: float = 35.0, floor_db: float = -60.0, margin_s: float = 0.1) -> np.ndarray:
+    """Cut the leading and trailing audio that is ``rel_db`` below the loudest 25 ms frame (or under ``floor_db``).
+
+    Keeps ``margin_s`` either side of the first and last loud frame. On noisy audio it keeps almost
+    everything, which is safe: it only saves encoder time where there is silence to cut.
+    """
+    db = _frame_power_db(audio)
+    loud = np.flatnonzero(db > max(float(db.max()) - rel_db, floor_db))
+    if loud.size == 0:
+        return audio
+    margin = int(margin_s * SAMPLE_RATE)
+    return audio[max(0, loud[0] * 160 - margin): min(audio.size, loud[-1] * 160 + 400 + margin)]
+
+
+def first_unit_length(pieces: Sequence[str]) -> int:
+    """How many leading tokens of a free transcript form its first unit, given each token's text.
+
+    On a short window Whisper loops ("Up Up Up Up", "Right, right, right"); the repeats get
+    near-certain probabilities and would inflate the transcript's mean. The unit ends before the
+    first token whose word repeats the first word; trailing punctuation is dropped.
+    """
+    words = ["".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces]
+    n = len(words)
+    first = next((w for w in words if w), "")
+    seen = False
+    for i, w in enumerate(words):
+        if w and w == first:
+            if seen:
+                n = i
+                break
+            seen = True
+    while n > 1 and not words[n - 1]:
+        n -= 1
+    return n
+
+
+@dataclass(frozen=True)
+class PhraseScores:
+    """One utterance judged against one dictionary.
+
+    ``ranked``: (phrase, mean token log-probability) for the teacher-forced phrases, best first (a
+    phrase appears once, with its best form); ``free_text`` / ``free_logprob``: Whisper's own
+    transcript and its teacher-forced mean log-probability (-inf when it wrote nothing);
+    ``margin``: best phrase minus free transcript; ``class_gap``: best phrase minus the best phrase of
+    another class.
+    """
+
+    ranked: tuple[tuple[Phrase, float], ...]
+    free_text: str
+    free_logprob: float
+    no_speech_prob: float
+
+    @property
+    def best(self) -> tuple[Phrase, float] | None:
+        return self.ranked[0] if self.ranked else None
+
+    @property
+    def margin(self) -> float:
+        if not self.ranked:
+            return -math.inf
+        best = self.ranked[0][1]
+        return best - self.free_logprob if math.isfinite(self.free_logprob) else 0.0
+
+    @property
+    def class_gap(self) -> float:
+        if not self.ranked:
+            return 0.0
+        winner, best = self.ranked[0][0].action, self.ranked[0][1]
+        rival = next((lp for p, lp in self.ranked if p.action != winner), None)
+        return math.inf if rival is None else best - rival
+
+
+def _mean(logprobs: np.ndarray) -> float:
+    return float(np.mean(logprobs)) if logprobs.size else -math.inf
+
+
+def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
+                    max_new_tokens: int = 6, top_k: int = 8) -> PhraseScores:
+    """Judge one encoded utterance against one dictionary (see the module docstring).
+
+    ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded.
+    Greedy decoding and the fixed batch keep it deterministic: the same audio gives the same scores.
     """
     import ctranslate2
 
-    sequences = [phrase_tokens(tokenizer, p) for p in dictionary.phrases]
+    prompt = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
+    free = model.generate(encoder_output, [prompt], max_length=len(prompt) + max_new_tokens, beam_size=1,
+                          return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
+                          suppress_blank=True, suppress_tokens=[-1])[0]
+    greedy = list(free.sequences_ids[0])
+    steps = [np.asarray(lg, np.float64).ravel() for lg in free.logits[0]]
+    steps = [v - np.logaddexp.reduce(v) for v in steps]
+    # What the greedy pass already knows of each form: the log-probs of its tokens along the greedy
+    # path up to (and including) the first token where it leaves the path. Their mean ranks the forms;
+    # only the best ``top_k`` are teacher-forced (each costs a decoder pass over the encoder output).
+    known_mean = np.full(len(forms.tokens), -np.inf)
+    for i, toks in enumerate(forms.tokens):
+        known: list[float] = []
+        for t, tok in enumerate(toks):
+            if t >= len(steps):
+                break
+            known.append(float(steps[t][tok]))
+            if t >= len(greedy) or tok != greedy[t]:
+                break
+        if known:
+            known_mean[i] = sum(known) / len(known)
+    # A stable sort keeps ties in dictionary order: same audio, same phrases scored.
+    chosen = [int(i) for i in np.argsort(-known_mean, kind="stable")[:max(1, top_k)]]
+    # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
+    unit = greedy[:first_unit_length([tokenizer.decode([t]) for t in greedy])] if greedy else []
+    if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):
+        unit = unit + list(tokenizer.encode("."))
+    else:
+        unit = []
+    sequences = [list(forms.tokens[i]) for i in chosen] + ([unit] if unit else [])
     encoded = np.asarray(encoder_output)
-    start = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
-    out: list[float] = []
-    for lo in range(0, len(sequences), batch_size):
-        chunk = sequences[lo : lo + batch_size]
-        repeated = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(chunk), axis=0)))
-        for result in model.align(repeated, start, chunk, [num_frames] * len(chunk)):
-            probs = np.asarray(result.text_token_probs, dtype=np.float64)
-            out.append(float(np.mean(np.log(np.maximum(probs, 1e-12)))))
-    return out
-
-
-def score_phrases(
-    model, encoder_output, tokenizer, dictionary: Dictionary, num_frames: int, prior: Sequence[float] | None = None,
-    prior_weight: float = 0.0, batch_size: int = 8,
-) -> list[PhraseScore]:
-    """Every phrase of ``dictionary`` scored on one encoder output, best first.
-
-    ``prior`` is :func:`phrase_logprobs` on an encoded silence (same phrase order).
-    """
-    raw = phrase_logprobs(model, encoder_output, tokenizer, dictionary, num_frames, batch_size)
-    prior = list(prior) if prior is not None else [0.0] * len(raw)
-    scores = [PhraseScore(p, dictionary, lp - prior_weight * pr) for p, lp, pr in zip(dictionary.phrases, raw, prior)]
-    scores.sort(key=lambda s: s.logprob, reverse=True)
-    return scores
-
-
-def class_posteriors(scores: Sequence[PhraseScore], temperature: float) -> dict[str, float]:
-    """Softmax of phrase scores / ``temperature``, summed per action class."""
-    if not scores:
-        return {}
-    top = scores[0].logprob
-    weights = [math.exp((s.logprob - top) / temperature) for s in scores]
-    total = sum(weights)
-    out: dict[str, float] = {}
-    for s, w in zip(scores, weights):
-        out[s.phrase.action] = out.get(s.phrase.action, 0.0) + w / total
-    return out
-
-
-def class_gap(scores: Sequence[PhraseScore]) -> float:
-    """Best phrase score minus the best score of a phrase of another class (inf when there is none)."""
-    if not scores:
-        return 0.0
-    winner = scores[0].phrase.action
-    rival = next((s.logprob for s in scores if s.phrase.action != winner), None)
-    return math.inf if rival is None else scores[0].logprob - rival
-
-
-_WORD = re.compile(r"\w+(?:'\w+)?", re.UNICODE)
-
-
-def collapse_repeats(text: str) -> str:
-    """"Down. Down. Down. Do" -> "Down": Whisper repeats itself on a short window; keep one period."""
-    words = _WORD.findall(text)
-    low = [w.lower() for w in words]
-    for period in range(1, len(low) + 1):
-        unit = low[:period]
-        if all(w == unit[i % period] or (i == len(low) - 1 and unit[i % period].startswith(w))
-               for i, w in enumerate(low)):
-            return " ".join(words[:period])
-    return " ".join(words)
+    batch = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(sequences), axis=0)))
+    results = model.align(batch, prompt, sequences, [num_frames] * len(sequences))
+    logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
+    free_logprob = _mean(logprobs.pop()) if unit else -math.inf
+    best: dict[int, tuple[Phrase, float]] = {}
+    for i, lp in zip(chosen, logprobs):
+        phrase, score = forms.phrases[i], _mean(lp)
+        key = id(phrase)
+        if key not in best or score > best[key][1]:
+            best[key] = (phrase, score)
+    ranked = tuple(sorted(best.values(), key=lambda item: item[1], reverse=True))
+    return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob))

@@ -17,7 +17,7 @@ from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.errors import GcsVoiceError
-from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds, transcript_limits
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds
 from gcs_voice.domain.text import normalize_text
 
 __all__ = ["Matcher", "Candidate", "Ranking", "MatcherOptionError"]
@@ -119,9 +119,6 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = self._transcript_reason(recognition, best) if rejecting else ""
-        if reason:
-            return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
             action=best.phrase.action,
             text=best.text,
@@ -197,33 +194,6 @@ class Matcher:
             f"distance {best.distance:.2f} > {max_distance:.2f})"
         )
 
-    def _transcript_reason(self, recognition: Recognition, best: Candidate) -> str:
-        """Check a scored phrase against the engine's own free transcript (Whisper mode "score").
-
-        The phrase scores say which command is likeliest, not whether the speech was a command. A
-        confident transcript is taken as what was said: it must sound like the winning class ("go
-        home" must not fly "go down"). An unsure one (gibberish on a robotic voice) is no evidence
-        either way, but then a weak phrase score needs it to agree.
-        """
-        limits = transcript_limits(recognition.engine, self.thresholds_path)
-        if not limits:
-            return ""
-        heard = recognition.transcript
-        key = best.dictionary.strip_skip_words(normalize_text(heard))
-        self.prepare([best.dictionary])
-        own = min((self.distance(key, p, best.dictionary) for p in best.dictionary.phrases
-                   if p.action == best.phrase.action), default=1.0) if key else 1.0
-        extra = recognition.extra
-        confident = extra.get("free_logprob", -float("inf")) > limits.get("confident_logprob", float("inf"))
-        if confident and own > limits.get("confident_max_distance", 1.0):
-            return (f"'{heard}' is not '{best.phrase.text}' (the recogniser's own transcript, "
-                    f"distance {own:.2f} > {limits['confident_max_distance']:.2f})")
-        phrase_score = extra.get("phrase_score", float("inf"))
-        if phrase_score < limits.get("min_phrase_score", -float("inf")) and own > limits.get("agree_max_distance", 1.0):
-            return (f"unsure of '{best.phrase.text}' (score {phrase_score:.2f} < {limits['min_phrase_score']:.2f}) "
-                    f"and the transcript '{heard}' does not sound like it")
-        return ""
-
     def _evidence_reason(self, recognition: Recognition) -> str:
         for key, limit in evidence_limits(recognition.engine, self.thresholds_path).items():
             kind, _, name = key.partition("_")
@@ -233,6 +203,9 @@ class Matcher:
             if kind == "max" and value > limit:
                 return f"'{recognition.text}' sounded unsure ({name} {value:.2f} > {limit:.2f})"
             if kind == "min" and value < limit:
+                if recognition.transcript:  # the engine heard something else than the phrase
+                    return (f"not a command: heard '{recognition.transcript}', not '{recognition.text}' "
+                            f"({name} {value:.2f} < {limit:.2f})")
                 return f"'{recognition.text}' sounded unsure ({name} {value:.2f} < {limit:.2f})"
         return ""
 

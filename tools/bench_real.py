@@ -1,0 +1,316 @@
+"""Real people: the voice front-end on ../shared/speech, clean and under real noise, split by speaker.
+
+Three stages, all on the real recordings of ``tools.real_speech`` (split by speaker: thresholds are
+chosen on ``dev`` and reported on ``test``, which tuning never sees):
+
+    python -m tools.bench_real recognise --engine whisper-score      # cache recognitions, every condition
+    python -m tools.bench_real tune --engine whisper-score --write   # choose thresholds on dev
+    python -m tools.bench_real report                                # docs/bench/real.md from the caches
+
+``recognise`` streams every file (under every condition: clean; kitchen at 20/12/6 dB; tap, machine and
+voices-with-cat at 12 dB) through the engine exactly as ``gcs-voice recognize`` does, and caches the
+recognition and the time from the end of the audio to the result in
+``out/bench/real/<engine>.jsonl`` (resumable; a changed file or changed engine settings are recognised again).
+``tune`` replays the cache through the real matcher with candidate thresholds (temporary copies of
+``gcs_voice/understanding/thresholds.toml``) and keeps the one with the most commands right on dev such that
+non-commands acted on stay within the limits (<= 2 % clean, <= 3 % at 12 dB) and wrong actions <= 1 %.
+``report`` writes the tables with the count behind every percentage.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import re
+import statistics
+import sys
+import tempfile
+import time
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from gcs_voice.asr.base import Hypothesis, Recognition
+from gcs_voice.domain.dictionary import load_language
+from gcs_voice.understanding import get_matcher
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
+from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
+
+REPO = Path(__file__).resolve().parent.parent
+CACHE_DIR = REPO / "out" / "bench" / "real"
+DOC = REPO / "docs" / "bench" / "real.md"
+CHUNK_S = 0.1
+#: engine label -> (registry engine, mode)
+ENGINES = {"whisper-score": ("whisper", "score"), "whisper": ("whisper", "grammar"), "sphinx": ("sphinx", "grammar")}
+MATCHER = "phonetic"
+#: the issue's limits, per condition group: non-commands acted on, wrong actions (fractions)
+LIMITS = {"clean": (0.02, 0.01), "noisy": (0.03, 0.01)}
+
+
+# -- recognise ----------------------------------------------------------------------------------------
+def _digest(path: Path) -> str:
+    return hashlib.sha1(path.read_bytes()).hexdigest()[:16]
+
+
+def _key(rec: Recording, condition: str) -> str:
+    return f"{rec.path.relative_to(SHARED / 'speech')}|{condition}"
+
+
+def cache_path(engine: str) -> Path:
+    return CACHE_DIR / f"{engine}{_TAG}.jsonl"
+
+
+#: a label for a variant's cache (``--tag``), so settings can be compared without losing a run
+_TAG = ""
+
+
+def load_cache(engine: str) -> dict[str, dict]:
+    path = cache_path(engine)
+    out: dict[str, dict] = {}
+    if path.is_file():
+        for line in path.read_text(encoding="utf-8").splitlines():
+            if line.strip():
+                row = json.loads(line)
+                out[row["key"]] = row
+    return out
+
+
+def recognise_one(recognizer, audio: np.ndarray) -> tuple[Recognition, float]:
+    """Stream 100 ms chunks as a microphone would; the time counted is from the end of the audio to the result."""
+    pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
+    chunk = int(CHUNK_S * 16_000) * 2
+    stream = recognizer.start_stream("en")
+    for i in range(0, len(pcm), chunk):
+        stream.accept(pcm[i:i + chunk])
+    t0 = time.perf_counter()
+    result = stream.finish()
+    return result, time.perf_counter() - t0
+
+
+def recognise(engine: str, model: str | None, conditions: list[str], split: str | None,
+              overrides: dict[str, float] | None = None) -> None:
+    from gcs_voice.asr.registry import load_recognizer
+
+    name, mode = ENGINES[engine]
+    recognizer = load_recognizer(name, [load_language("en")], model=model, mode=mode)
+    recognizer.settings.update(overrides or {})  # a variant of asr/engines.toml, cached under --tag
+    config = hashlib.sha1(json.dumps(recognizer.settings, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    cache = {k: row for k, row in load_cache(engine).items() if row.get("config") == config}
+    CACHE_DIR.mkdir(parents=True, exist_ok=True)
+    recs = load_recordings(split=split)
+    todo = [(r, c) for c in conditions for r in recs
+            if _key(r, c) not in cache or cache[_key(r, c)]["sha1"] != _digest(r.path)]
+    print(f"{engine}: {len(todo)} recognitions to do ({len(recs)} files x {len(conditions)} conditions)", file=sys.stderr)
+    with open(cache_path(engine), "a", encoding="utf-8") as out:
+        for i, (rec, cond) in enumerate(todo):
+            result, dt = recognise_one(recognizer, condition_audio(rec, cond))
+            row = {"key": _key(rec, cond), "sha1": _digest(rec.path), "config": config,
+                   "engine": result.engine, "lang": result.lang,
+                   "hypotheses": [[h.text, h.confidence, h.score] for h in result.hypotheses],
+                   "extra": dict(result.extra), "transcript": result.transcript, "audio_s": result.audio_s,
+                   "decision_s": dt}
+            out.write(json.dumps(row) + "\n")
+            out.flush()
+            if i % 50 == 0:
+                print(f"  {i}/{len(todo)} {row['key']} {dt * 1000:.0f} ms", file=sys.stderr)
+
+
+def _recognition(row: dict) -> Recognition:
+    return Recognition(tuple(Hypothesis(t, c, s) for t, c, s in row["hypotheses"]), row["engine"], row["lang"],
+                       row["audio_s"], row["extra"], transcript=row["transcript"])
+
+
+# -- scoring ------------------------------------------------------------------------------------------
+@dataclass
+class Counts:
+    """Decisions on one set of files: commands right / wrong / rejected, non-commands acted on."""
+
+    commands: int = 0
+    right: int = 0
+    wrong: int = 0
+    words: int = 0
+    words_acted: int = 0
+    sentences: int = 0
+    sentences_acted: int = 0
+
+    @property
+    def others(self) -> int:
+        return self.words + self.sentences
+
+    @property
+    def others_acted(self) -> int:
+        return self.words_acted + self.sentences_acted
+
+
+def count(recs: list[Recording], condition: str, cache: dict[str, dict], matcher) -> Counts:
+    en = [load_language("en")]
+    c = Counts()
+    for rec in recs:
+        row = cache.get(_key(rec, condition))
+        if row is None:
+            continue
+        action = matcher.decide(_recognition(row), en).action
+        if rec.kind == "command":
+            c.commands += 1
+            c.right += action == rec.action
+            c.wrong += action is not None and action != rec.action
+        elif rec.kind == "word":
+            c.words += 1
+            c.words_acted += action is not None
+        else:
+            c.sentences += 1
+            c.sentences_acted += action is not None
+    return c
+
+
+def pct(n: int, d: int) -> str:
+    return f"{100.0 * n / d:.1f} % ({n}/{d})" if d else "–"
+
+
+# -- tune ---------------------------------------------------------------------------------------------
+#: engine -> thresholds.toml table and the candidate values of each key tuned in it (their product is swept)
+TUNED = {"whisper-score": ("evidence.whisper-score", {
+    "min_margin": [round(float(x), 2) for x in np.arange(-2.0, 0.01, 0.1)],
+    "min_class_gap": [0.0, 0.2, 0.4, 0.6, 0.8, 1.0],
+})}
+#: conditions whose dev counts constrain the choice (kitchen6 is reported, without a target)
+TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12")
+
+
+def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str) -> Path:
+    """A copy of thresholds.toml with ``[table] key = value`` for each item (replaced or added)."""
+    text = THRESHOLDS_PATH.read_text(encoding="utf-8")
+    header = f"[{table}]"
+    if header not in text:
+        text += f"\n{header}\n"
+    start = text.index(header) + len(header)
+    end = text.find("\n[", start)
+    end = len(text) if end < 0 else end
+    body = text[start:end]
+    for key, value in values.items():
+        line = re.compile(rf"^{re.escape(key)}\s*=.*$", re.M)
+        body = line.sub(f"{key} = {value}", body) if line.search(body) else body.rstrip("\n") + f"\n{key} = {value}\n"
+    text = text[:start] + body + text[end:]
+    tomllib.loads(text)
+    path = directory / f"thresholds_{name}.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def tune(engine: str, write: bool) -> int:
+    """Sweep the engine's thresholds on dev; keep the most commands right within the limits."""
+    import itertools
+
+    table, grid = TUNED[engine]
+    cache = load_cache(engine)
+    dev = load_recordings(split="dev")
+    conditions = [c for c in TUNE_CONDITIONS if any(_key(r, c) in cache for r in dev)]
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for n, combo in enumerate(itertools.product(*grid.values())):
+            values = dict(zip(grid, combo))
+            matcher = get_matcher(MATCHER, thresholds_path=_with_thresholds(table, values, Path(tmp), str(n)))
+            per = {cond: count(dev, cond, cache, matcher) for cond in conditions}
+            ok = True
+            for cond, c in per.items():
+                acted_limit, wrong_limit = LIMITS["clean" if cond in ("clean", "kitchen20") else "noisy"]
+                ok &= c.others_acted <= acted_limit * c.others and c.wrong <= wrong_limit * c.commands
+            rows.append((values, ok, sum(c.right for c in per.values()), per))
+    print(f"dev split, conditions {', '.join(conditions)}; limits: non-commands acted on <= 2 % clean / 3 % noisy, "
+          f"wrong <= 1 %")
+    feasible = sorted((r for r in rows if r[1]), key=lambda r: r[2], reverse=True)
+    for values, ok, right, per in feasible[:12]:
+        cells = "   ".join(f"{cond} {c.right}/{c.commands} right, {c.wrong} wrong, {c.others_acted}/{c.others} acted"
+                           for cond, c in per.items())
+        print(f"  {values}  right {right}: {cells}")
+    if not feasible:
+        print("no setting meets the limits on dev", file=sys.stderr)
+        return 1
+    # most right; among equals the strictest setting (largest thresholds)
+    best = max(feasible, key=lambda r: (r[2], *r[0].values()))
+    print(f"chosen: [{table}] " + ", ".join(f"{k} = {v}" for k, v in best[0].items()))
+    if write:
+        THRESHOLDS_PATH.write_text(_with_thresholds(table, best[0], CACHE_DIR, "chosen").read_text(encoding="utf-8"),
+                                   encoding="utf-8")
+        print(f"written to {THRESHOLDS_PATH.relative_to(REPO)}")
+    return 0
+
+
+# -- report -------------------------------------------------------------------------------------------
+def report(engines: list[str]) -> str:
+    test = load_recordings(split="test")
+    lines = ["# Real people: the voice front-end on real recordings", "",
+             "Generated by `python -m tools.bench_real report` from the caches of `python -m tools.bench_real recognise`.",
+             "Corpus: ../shared/speech (real English speakers; see its README), **test split** (speakers that tuning never saw:",
+             "`python -m tools.real_speech`), clean and mixed with the real noises of ../shared/noise at the SNR named",
+             "(speech level over its voiced frames). Matcher: phonetic with `gcs_voice/understanding/thresholds.toml`.",
+             "Commands right = the right class; wrong = another class acted on; non-commands acted on = any action on",
+             "a non-command word or a spoken sentence.", ""]
+    for engine in engines:
+        cache = load_cache(engine)
+        if not cache:
+            continue
+        matcher = get_matcher(MATCHER)
+        lines += [f"## {engine}", "",
+                  "| condition | commands right | wrong | non-command words acted on | sentences acted on | decision p50 / p95 |",
+                  "| --- | --- | --- | --- | --- | --- |"]
+        for cond in CONDITIONS:
+            c = count(test, cond, cache, matcher)
+            if not c.commands:
+                continue
+            times = [cache[_key(r, cond)]["decision_s"] * 1000 for r in test if _key(r, cond) in cache]
+            p50, p95 = statistics.median(times), float(np.percentile(times, 95))
+            lines.append(f"| {cond} | {pct(c.right, c.commands)} | {pct(c.wrong, c.commands)} | "
+                         f"{pct(c.words_acted, c.words)} | {pct(c.sentences_acted, c.sentences)} | {p50:.0f} / {p95:.0f} ms |")
+        lines += ["", "Decision time: from the end of the audio to the recognition, as recorded while the cache was made"
+                  " (the machine was not idle: `tools/bench_latency.py` measures latency on an idle machine).", ""]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m tools.bench_real", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="stage", required=True)
+    rec = sub.add_parser("recognise", help="recognise every real file under every condition (cached)")
+    rec.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
+    rec.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
+    rec.add_argument("--conditions", default=",".join(CONDITIONS))
+    rec.add_argument("--split", choices=("dev", "test"))
+    rec.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                     help="override an engine setting of asr/engines.toml for this run (use with --tag)")
+    for stage in (rec,):
+        stage.add_argument("--tag", default="", help="cache a variant apart: out/bench/real/<engine>-<tag>.jsonl")
+    tun = sub.add_parser("tune", help="choose the engine's rejection threshold on the dev split")
+    tun.add_argument("--engine", choices=sorted(TUNED), default="whisper-score")
+    tun.add_argument("--write", action="store_true", help="write the chosen value into thresholds.toml")
+    rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
+    rep.add_argument("--engines", default=",".join(ENGINES))
+    args = parser.parse_args(argv)
+    global _TAG
+    _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
+    if args.stage == "recognise":
+        unknown = set(args.conditions.split(",")) - set(CONDITIONS)
+        if unknown:
+            parser.error(f"unknown conditions {sorted(unknown)} (known: {', '.join(CONDITIONS)})")
+        overrides = {}
+        for item in args.set:
+            key, _, value = item.partition("=")
+            try:
+                overrides[key] = float(value)
+            except ValueError:
+                parser.error(f"--set {item!r}: expected KEY=NUMBER")
+        recognise(args.engine, args.model if args.engine.startswith("whisper") else None,
+                  args.conditions.split(","), args.split, overrides)
+        return 0
+    if args.stage == "tune":
+        return tune(args.engine, args.write)
+    DOC.parent.mkdir(parents=True, exist_ok=True)
+    DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
+    print(f"wrote {DOC.relative_to(REPO)}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
