@@ -22,7 +22,7 @@ from gcs_voice.session.flight_log import Flight, read_flight
 from gcs_voice.session.session_log import read_session_log
 
 REPO = Path(__file__).resolve().parent.parent
-DEMO_AUDIO = REPO / "gcs_voice" / "demo_audio"
+DEMO_AUDIO = REPO / "gcs_voice" / "session" / "demo_audio"
 #: simulated seconds per wall second in the e2e flights (the sim keeps up with this on 2 busy cores)
 SPEEDUP = 2.0
 
