@@ -13,7 +13,7 @@ from gcs_voice.link.options import DEFAULT_UDP_PORT
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    from gcs_voice.link.options import add_setting_arguments
+    from gcs_voice.link.options import add_setting_arguments, range_help, setting_type
 
     link = parser.add_argument_group("vehicle link")
     where = link.add_mutually_exclusive_group()
@@ -43,8 +43,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     voice.add_argument("--hold", type=float, default=3.0, metavar="S",
                        help="with --say: seconds the last action runs before the session ends, stopped (default 3)")
     flight = parser.add_argument_group("flight")
-    flight.add_argument("--takeoff", type=float, metavar="M",
-                        help="arm and take off to M metres as soon as the vehicle reports it can")
+    flight.add_argument("--takeoff", type=setting_type("takeoff_altitude_m"), metavar="M",
+                        help="arm and take off to M metres as soon as the vehicle reports it can"
+                             + range_help("takeoff_altitude_m"))
     flight.add_argument("--config", type=Path, metavar="FILE",
                         help="settings TOML overriding the defaults (speeds, floor, fence, ceiling, link timing)")
     add_setting_arguments(flight)
@@ -57,18 +58,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from gcs_voice.link.options import setting_overrides
+    from gcs_voice.errors import GcsVoiceError
+    from gcs_voice.link.options import setting_flag_names, setting_overrides
     from gcs_voice.session.run import SessionConfig, run_session
+    from gcs_voice.settings import load_settings
 
     if args.json and not args.headless:
         args.headless = True
+    overrides, names = setting_overrides(args), setting_flag_names()
+    if args.takeoff is not None:  # --takeoff M is the take-off height too
+        if overrides.get("takeoff_altitude_m") not in (None, args.takeoff):
+            raise GcsVoiceError(f"--takeoff {args.takeoff:g} and --takeoff-alt {overrides['takeoff_altitude_m']:g} "
+                                "disagree: give one")
+        overrides["takeoff_altitude_m"], names["takeoff_altitude_m"] = args.takeoff, "--takeoff"
+    load_settings(args.config, names=names, **overrides)  # values that disagree (floor above ceiling): one line now
     connection = _connection(args)
     config = SessionConfig(
         connection=connection, lang=args.lang, engine=args.engine, model=args.model, matcher=args.matcher,
         dictionaries=args.dictionary or [], settings_path=args.config, say=args.say or [], gap_s=args.gap,
         hold_s=args.hold, takeoff_m=args.takeoff, push_to_talk=args.push_to_talk, headless=args.headless,
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
-        setting_overrides=setting_overrides(args),
+        setting_overrides=overrides, setting_names=names,
     )
     return run_session(config).exit_code
 

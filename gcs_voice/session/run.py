@@ -14,12 +14,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.session.events import EventBus
 from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
 from gcs_voice.session.session_log import SessionLog, session_paths
 
-__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice"]
+__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice", "USER_ERROR_EXIT"]
+
+#: exit status of a session ended by a user mistake or a missing vehicle (GcsVoiceError), as the CLI exits
+USER_ERROR_EXIT = 2
 
 
 @dataclass
@@ -49,6 +53,8 @@ class SessionConfig:
     subscribers: Sequence[Callable[[Any], None]] = ()
     #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
     setting_overrides: dict[str, float | None] = field(default_factory=dict)
+    #: how the user wrote each override (its flag), for error messages
+    setting_names: dict[str, str] = field(default_factory=dict)
 
 
 @dataclass
@@ -90,7 +96,11 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     from gcs_voice.link import VehicleLink
     from gcs_voice.settings import load_settings
 
-    settings = load_settings(config.settings_path, **config.setting_overrides)
+    overrides = dict(config.setting_overrides)
+    if config.takeoff_m is not None:  # take off at once, to this height: checked like the setting
+        overrides["takeoff_altitude_m"] = config.takeoff_m
+    settings = load_settings(config.settings_path, names={"takeoff_altitude_m": "--takeoff", **config.setting_names},
+                             **overrides)
     recognizer, matcher, dictionaries, stream_lang = voice or load_voice(
         config.lang, config.engine, config.model, config.matcher, config.dictionaries)
     steps = _script(config)
@@ -122,12 +132,14 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
              argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
              engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-    link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
+    link = None
     exit_code = 1
+    error: str | None = None
     try:
+        link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
         link.open()
         mapper = ActionMapper(settings)
-        bridge = Bridge(link, mapper, bus, config.takeoff_m or settings.takeoff_altitude_m)
+        bridge = Bridge(link, mapper, bus, settings.takeoff_altitude_m)
         if not config.headless:
             from gcs_voice.session.view import LiveView
 
@@ -162,10 +174,19 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     except KeyboardInterrupt:
         bus.emit("session", "interrupted (Ctrl-C) before the flight loop", phase="interrupt")
         exit_code = 130
+    except GcsVoiceError as exc:  # the CLI prints it in one line and exits 2: the log says the same
+        exit_code, error = USER_ERROR_EXIT, str(exc)
+        raise
     finally:
         if view is not None:
             view.stop()
-        link.close()
-        bus.emit("session", f"session end (exit {exit_code})", phase="end", exit_code=exit_code)
+        if link is not None:
+            link.close()
+        heard = link is not None and link.state.heartbeats > 0
+        bus.emit("session", f"session end (exit {exit_code})", phase="end",
+                 exit_code=exit_code, **({"error": error} if error else {}))
         log.close()
+        if not heard:  # nothing flew and nothing was heard: no logs (the one-line error says why)
+            for path in (tlog, jsonl):
+                path.unlink(missing_ok=True)
     return SessionResult(exit_code, tlog, jsonl, [e.to_dict() for e in bus.history])
