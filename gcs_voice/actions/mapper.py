@@ -7,8 +7,8 @@ next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home, or abov
 downward rangefinder sees (a table), whichever is nearer; climbs stop at ``ceiling_m``;
 horizontal motion stops at ``fence_radius_m`` from home (only the outward motion). Unknown height or
 position counts as "at the limit": the mapper does not command what it cannot check. A lost link
-turns the action into ``stop``, so the first setpoint after the link returns is a hold.
-NaN never leaves the mapper.
+turns the action into ``stop``, so the first setpoint after the link returns is a hold. ``halt()``
+(Ctrl-C) makes every later setpoint a stop at once, whatever thread asks next. NaN never leaves the mapper.
 """
 
 from __future__ import annotations
@@ -73,6 +73,19 @@ class ActionMapper:
         self.events: deque[str] = deque(maxlen=32)
         #: apply() runs in the caller's thread, setpoint() in the link's stream thread
         self._lock = threading.RLock()
+        #: set by halt(): a plain flag, because a signal handler sets it (no lock may be taken there)
+        self._halted = False
+
+    def halt(self) -> None:
+        """From now on every setpoint is a stop and no motion is taken (Ctrl-C: safe in a signal handler).
+
+        The streamer asks ``setpoint()`` at 10 Hz in its own thread, so the very next setpoint is a stop,
+        not the one after the session loop has noticed."""
+        self._halted = True
+
+    @property
+    def halted(self) -> bool:
+        return self._halted
 
     def _init_yaw(self, state: VehicleState) -> float:
         if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
@@ -97,6 +110,9 @@ class ActionMapper:
         if action in FLIGHT_ACTIONS:
             self.action = "stop"
             return MappedAction(action, action, yaw)
+        if self._halted:  # after Ctrl-C nothing moves the vehicle again
+            self.action = "stop"
+            return MappedAction("stop", None, yaw)
         if action == "turn_right":
             yaw = self.yaw_target_deg = wrap_deg(yaw + self.settings.turn_step_deg)
         elif action == "turn_left":
@@ -117,6 +133,8 @@ class ActionMapper:
     def _setpoint(self, state: VehicleState) -> Setpoint:
         yaw = self._init_yaw(state)
         reasons: list[str] = []
+        if self._halted:
+            self._switch_to_stop("halted (Ctrl-C)")
         if state.last_heard_s is not None and not state.link_ok:
             self._switch_to_stop("link lost")
         height = state.height_m if _finite(state.height_m) else None

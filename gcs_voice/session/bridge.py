@@ -25,6 +25,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
 from gcs_voice.session.events import EventBus
@@ -59,8 +60,9 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
     if state.north_m_s is not None and state.east_m_s is not None:
         speed = (state.north_m_s ** 2 + state.east_m_s ** 2 + (state.down_m_s or 0.0) ** 2) ** 0.5
     link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
+    heading = round_deg(state.heading_deg, 0) if state.heading_deg is not None else None  # 359.7 is north: 0
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
-            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+            "alt_m": state.height_m, "heading_deg": heading, "speed_m_s": speed, "action": action}
 
 
 def _on_ground(state: Any) -> bool:
@@ -82,9 +84,11 @@ class Bridge:
         self._requests: queue.Queue[Request] = queue.Queue()
         self._finish = threading.Event()
         self._interrupted = False  # set by the SIGINT handler (a plain flag: no lock taken in a handler)
+        self.halted_t: float | None = None  # UNIX time the SIGINT handler stopped the setpoint source
         self._busy: str | None = None  # flight operation in progress
         self._op_thread: threading.Thread | None = None
         self._link_ok: bool | None = None
+        self._heartbeats_at_loss = 0
         self._limit_reason = ""
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
@@ -114,8 +118,10 @@ class Bridge:
     def run(self) -> int:
         """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
 
-        Ctrl-C only sets a flag that the loop reads: a KeyboardInterrupt raised at an arbitrary
-        bytecode could leave a lock (the link's, a queue's) held and hang the final stop.
+        Ctrl-C halts the mapper (the setpoint source: the next setpoint the 10 Hz stream sends is a stop)
+        and sets a flag that the loop reads; nothing else happens in the handler: a KeyboardInterrupt
+        raised at an arbitrary bytecode could leave a lock (the link's, a queue's) held and hang the
+        final stop.
         """
         previous = None
         if threading.current_thread() is threading.main_thread():
@@ -136,7 +142,9 @@ class Bridge:
             self._interrupted = True
         finally:
             if self._interrupted:
-                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt")
+                self.mapper.halt()  # already done by the handler, unless it came as KeyboardInterrupt
+                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt",
+                              halted_t=self.halted_t)
                 self.exit_code = self.exit_code or 130
             try:
                 self.shutdown()
@@ -146,20 +154,28 @@ class Bridge:
         return self.exit_code
 
     def _on_sigint(self, _signum: int, _frame: Any) -> None:
+        self.mapper.halt()  # first: every setpoint decided from here on is a stop
+        if self.halted_t is None:
+            self.halted_t = time.time()
         self._interrupted = True
 
     def _watch(self) -> None:
         """Link transitions and the mapper's automatic changes, said once each."""
         state = self.link.state
         if state.last_heard_s is not None and state.link_ok != self._link_ok:
-            if state.link_ok:
+            if state.link_ok and self._link_ok is False and state.heartbeats <= self._heartbeats_at_loss:
+                pass  # heard again, but no HEARTBEAT yet: the mode we hold is from before the loss (a failsafe
+                #       may have changed it), so "restored" waits for the HEARTBEAT that says the mode now
+            elif state.link_ok:
                 what = "connected" if self._link_ok is None else "restored"
                 self.bus.emit("link", f"link {what}: {state.autopilot or 'unknown autopilot'}, mode {state.mode}",
-                              state=what, autopilot=state.autopilot, system_id=state.system_id)
+                              state=what, autopilot=state.autopilot, system_id=state.system_id, mode=state.mode)
+                self._link_ok = True
             else:
                 self.bus.emit("link", f"link LOST: vehicle silent for {self.link.settings.link_lost_s:g} s; "
                               "nothing is commanded until it returns, then a stop", state="lost")
-            self._link_ok = state.link_ok
+                self._link_ok = False
+                self._heartbeats_at_loss = state.heartbeats
         while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
             self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
         reason = self.mapper.limit_reason
@@ -202,11 +218,12 @@ class Bridge:
             # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
             return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
                                          "say 'take off' to fly by voice again")
+        decided_s = time.time()  # before the mapper decides (see VehicleLink.send_setpoint)
         mapped = self.mapper.apply(action, state)
         if not self.link.streaming:
             self.link.start_stream(self.mapper.setpoint)
         setpoint = self.mapper.setpoint(state)
-        self.link.send_setpoint(setpoint)  # at once, not at the next 10 Hz tick
+        self.link.send_setpoint(setpoint, decided_s)  # at once, not at the next 10 Hz tick
         sent_t = time.time()
         request.accepted = True
         d = request.decision
@@ -214,9 +231,9 @@ class Bridge:
             "command", f"{(repr(d.phrase) + ' -> ') if d and d.phrase else ''}{action}"
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
-            origin=request.origin, yaw_target_deg=round(mapped.yaw_target_deg, 1),
+            origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
             setpoint={"forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
-                      "down_m_s": setpoint.down_m_s, "yaw_deg": round(setpoint.yaw_deg, 2)},
+                      "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
             utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
         )
         return None
