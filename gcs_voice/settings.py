@@ -59,6 +59,7 @@ class Settings:
     floor_m: float
     ceiling_m: float
     fence_radius_m: float
+    hard_landing_m_s: float
     gcs_system_id: int
     gcs_component_id: int
     heartbeat_hz: float

@@ -188,7 +188,7 @@ class Bridge:
     # ---- carrying out one request -------------------------------------------------------------------
     def _refuse(self, request: Request, reason: str) -> None:
         self.bus.emit("refused", f"{request.action} not done: {reason}", action=request.action, reason=reason,
-                      origin=request.origin)
+                      origin=request.origin, utterance_end_t=request.utterance_end_t)
 
     def _serve(self, request: Request) -> None:
         action = request.action
@@ -201,6 +201,9 @@ class Bridge:
             if action == "disarm" and not _on_ground(state):
                 # A misheard "disarm" in the air would drop the vehicle: only on the ground.
                 return self._refuse(request, "the vehicle is flying: say 'land' first")
+            if action == "land" and state.armed is False:
+                # After a crash the autopilot disarms: a "land" then does nothing and must not look done.
+                return self._refuse(request, "the vehicle is disarmed: nothing to land")
             self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
             self._start_operation(request)
             return None
@@ -255,7 +258,8 @@ class Bridge:
         try:
             result = self._operation(action)
             ok = bool(getattr(result, "ok", False))
-            self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result))
+            self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result),
+                          utterance_end_t=request.utterance_end_t)
             request.accepted = ok
             if ok and action == "take_off":
                 self.flying_ready.set()

@@ -16,7 +16,8 @@ from typing import Any
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.listen import ScriptStep
 
-__all__ = ["DemoStep", "load_sequence", "run_demo", "whisper_model_candidates", "choose_voice"]
+__all__ = ["DemoStep", "load_sequence", "run_demo", "whisper_model_candidates", "choose_voice", "step_summary",
+           "collision_lines"]
 
 AUDIO_DIR = Path(__file__).resolve().parent / "demo_audio"
 #: preferred engines per language, fastest first (PocketSphinx ships an English model in its wheel)
@@ -67,27 +68,49 @@ def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Any,
     return None, notes
 
 
-def _summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]:
-    """One line per step: said -> heard -> action; and how many were heard as the intended action."""
+def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]:
+    """One line per step: said -> heard -> action -> done?; and how many were heard *and done* as intended.
+
+    A step counts only when the action was carried out: a motion the bridge refused (a disarmed vehicle
+    after a crash) or a take-off / land that failed is not "ok", even when it was heard right."""
     heard = [e for e in events if e["kind"] == "heard"]
+    by_end = {h.get("utterance_end_t"): i for i, h in enumerate(heard)}
     outcome: dict[int, dict] = {}
-    by_end = {}
-    for i, h in enumerate(heard):
-        by_end[h.get("utterance_end_t")] = i
+    flown: dict[int, dict] = {}
     for e in events:
-        if e["kind"] in ("command", "rejected") and e.get("utterance_end_t") in by_end:
-            outcome.setdefault(by_end[e["utterance_end_t"]], e)
+        i = by_end.get(e.get("utterance_end_t"))
+        if i is None:
+            continue
+        if e["kind"] in ("command", "rejected", "refused"):
+            outcome.setdefault(i, e)
+        elif e["kind"] == "flight":
+            flown.setdefault(i, e)
     lines, good = [], 0
     for i, step in enumerate(steps):
         h = heard[i] if i < len(heard) else None
         o = outcome.get(i)
-        got = o.get("action") if o and o["kind"] == "command" else None
-        good += got == step.expect
-        verdict = "ok" if got == step.expect else ("REJECTED: " + o.get("reason", "") if o and o["kind"] ==
-                                                   "rejected" else f"expected {step.expect}")
+        got = o.get("action") if o and o["kind"] in ("command", "refused") else None
+        if o is None or got != step.expect:
+            verdict = ("REJECTED: " + o.get("reason", "")) if o and o["kind"] == "rejected" else f"expected {step.expect}"
+        elif o["kind"] == "refused":
+            verdict = f"NOT DONE: {o.get('reason', '')}"
+        elif step.expect in ("take_off", "land") and not (flown.get(i) or {}).get("ok"):
+            verdict = f"FAILED: {(flown.get(i) or {}).get('detail', 'no result')}"
+        else:
+            verdict = "ok"
+        good += verdict == "ok"
         lines.append(f"  said {step.text!r:22} heard {(h or {}).get('text', '-')!r:24} -> {got or 'no action':11} "
                      f"{verdict}")
     return lines, good
+
+
+def collision_lines(events: list[dict]) -> list[str]:
+    """Every collision of the flight, with its time from the start of the session."""
+    from gcs_voice.session.collisions import collisions_in
+
+    t0 = events[0]["t"] if events else 0.0
+    return [f"  COLLISION at +{e['t'] - t0:.1f} s: {e['msg'].removeprefix('COLLISION: ')} ({e.get('text')!r})"
+            for e in collisions_in(events)]
 
 
 def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, autopilot: str, room: str,
@@ -102,7 +125,8 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
     worst = 0
-    flown = []
+    flown: list[str] = []
+    collided: list[str] = []
     # Load every language's recogniser in the background while the first flies (Whisper takes seconds).
     from concurrent.futures import ThreadPoolExecutor
 
@@ -131,14 +155,19 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
                                  voice=voice)
         png = plot_flight(result.tlog, out_dir / f"{stem}.png", room=room_data, session_log=result.jsonl,
                           title=f"gcs-voice demo ({lang}, {getattr(voice[0], 'name', '?')}, {autopilot})")
-        lines, good = _summary(steps, result.events)
-        print(f"demo: {lang}: {good}/{len(steps)} utterances heard as intended")
-        for line in lines:
+        lines, good = step_summary(steps, result.events)
+        hits = collision_lines(result.events)
+        print(f"demo: {lang}: {good}/{len(steps)} utterances heard as intended and done"
+              + (f"; the vehicle COLLIDED {len(hits)} time{'s' if len(hits) > 1 else ''}" if hits else ""))
+        for line in lines + hits:
             print(line)
         print(f"demo: {lang}: wrote {result.tlog}, {result.jsonl}, {png}")
         worst = max(worst, result.exit_code)
         flown.append(lang)
+        if hits:
+            collided.append(lang)
     if not flown:
         raise GcsVoiceError("no sequence could be flown: no recogniser available (see the notes above)")
-    print(f"demo: done in {time.monotonic() - started:.0f} s ({', '.join(flown)})")
+    print(f"demo: done in {time.monotonic() - started:.0f} s ({', '.join(flown)})"
+          + (f"; FAILED: the vehicle collided in {', '.join(collided)} (exit {worst})" if collided else ""))
     return worst

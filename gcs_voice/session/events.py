@@ -25,6 +25,7 @@ KINDS: dict[str, str] = {
     "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",
     "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
+    "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }

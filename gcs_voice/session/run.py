@@ -16,6 +16,7 @@ from typing import Any
 
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.session.collisions import CollisionWatch
 from gcs_voice.session.events import EventBus
 from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
 from gcs_voice.session.session_log import SessionLog, session_paths
@@ -24,6 +25,8 @@ __all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice", "USER_
 
 #: exit status of a session ended by a user mistake or a missing vehicle (GcsVoiceError), as the CLI exits
 USER_ERROR_EXIT = 2
+#: exit status of a session in which the vehicle hit something (and nothing worse happened)
+COLLISION_EXIT = 1
 
 
 @dataclass
@@ -115,6 +118,8 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     bus = EventBus()
     log = SessionLog(jsonl)
     bus.subscribe(log)
+    link = None
+    watch = CollisionWatch(bus, settings.hard_landing_m_s, mode=lambda: link.state.mode if link else None)
     for subscriber in config.subscribers:
         bus.subscribe(subscriber)
     view = None
@@ -122,6 +127,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         from gcs_voice.session.headless import HeadlessPrinter
 
         bus.subscribe(HeadlessPrinter(as_json=config.as_json))
+    bus.subscribe(watch)  # after the printers: a hit is printed after the vehicle's text that says it
 
     def link_said(line: str) -> None:
         if line.startswith("vehicle: "):
@@ -132,7 +138,6 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
              argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
              engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-    link = None
     exit_code = 1
     error: str | None = None
     try:
@@ -171,6 +176,8 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
 
             start_key_thread(bridge)
         exit_code = bridge.run()
+        if watch.count:  # a flight that hit something did not go well, whatever else went right
+            exit_code = exit_code or COLLISION_EXIT
     except KeyboardInterrupt:
         bus.emit("session", "interrupted (Ctrl-C) before the flight loop", phase="interrupt")
         exit_code = 130
@@ -183,8 +190,9 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         if link is not None:
             link.close()
         heard = link is not None and link.state.heartbeats > 0
-        bus.emit("session", f"session end (exit {exit_code})", phase="end",
-                 exit_code=exit_code, **({"error": error} if error else {}))
+        collided = f"; {watch.count} collision{'s' if watch.count > 1 else ''}" if watch.count else ""
+        bus.emit("session", f"session end (exit {exit_code}{collided})", phase="end", exit_code=exit_code,
+                 collisions=watch.count, **({"error": error} if error else {}))
         log.close()
         if not heard:  # nothing flew and nothing was heard: no logs (the one-line error says why)
             for path in (tlog, jsonl):
