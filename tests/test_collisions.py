@@ -111,3 +111,15 @@ def test_a_demo_that_collides_says_so_and_exits_non_zero(tmp_path: Path) -> None
     records = [json.loads(line) for line in (tmp_path / "demo-en.jsonl").read_text().splitlines()]
     printed = proc.stdout.count("COLLISION at +")
     assert printed == len([r for r in records if r["kind"] == "collision"])  # every hit is listed
+    # and the demo's flight plot marks it where it happened
+    import matplotlib.pyplot as plt
+
+    from gcs_voice.session.plot import draw_flight, load_room
+
+    fig = draw_flight(tmp_path / "demo-en.tlog", room=load_room(str(tmp_path / "cabinet.json")),
+                      session_log=tmp_path / "demo-en.jsonl")
+    try:
+        assert any("hit tall cabinet" in t.get_text() for t in fig.axes[0].texts)
+        assert any(line.get_label() == "collision" for line in fig.axes[0].lines)
+    finally:
+        plt.close(fig)
