@@ -42,3 +42,25 @@ def test_demo_flies_the_english_sequence_and_writes_its_outputs(tmp_path: Path) 
     port = next(e["connection"] for e in events if e["kind"] == "session" and e.get("phase") == "start").rsplit(":", 1)[1]
     running = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert f"udp:127.0.0.1:{port} " not in running and not running.rstrip().endswith(f"udp:127.0.0.1:{port}")
+
+
+def test_each_language_says_its_engine_model_and_why(whisper_model_dir: Path, tmp_path: Path, monkeypatch) -> None:
+    """A faster-whisper-base in ../shared is used for Spanish, and the demo says where it was found; --model
+    does not move English off PocketSphinx (README), and says how to."""
+    from gcs_voice.session.demo import choose_voice
+
+    require_parts("gcs_voice.asr.registry")
+    (tmp_path / "shared" / "models").mkdir(parents=True)
+    (tmp_path / "shared" / "models" / "faster-whisper-base").symlink_to(whisper_model_dir)
+    (tmp_path / "here").mkdir()
+    monkeypatch.chdir(tmp_path / "here")
+    monkeypatch.delenv("GCS_VOICE_SHARED", raising=False)
+
+    voice, _notes, line = choose_voice("es", "whisper", None)  # (a Vosk Spanish model would come first)
+    assert voice is not None and voice[0].name.startswith("whisper")
+    assert "faster-whisper-base (found in ../shared beside the current directory)" in line
+    assert line.startswith("es: whisper") and "why: " in line
+
+    voice, _notes, line = choose_voice("en", None, str(whisper_model_dir))
+    assert voice is not None and voice[0].name == "sphinx"
+    assert "--model is for Spanish: add --engine whisper" in line

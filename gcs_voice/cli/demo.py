@@ -1,8 +1,10 @@
 """``gcs-voice demo``: start the bundled simulator, fly the shipped spoken sequence, plot the flight.
 
-Needs nothing beyond ``pip install .``: English runs on PocketSphinx's bundled model. Spanish flies too
-when an engine with a Spanish model is present (Whisper via ``--model`` or a faster-whisper-base
-folder found beside the checkout, or a Vosk Spanish model); what is skipped is said, with why.
+Needs nothing beyond ``pip install .``: English runs on PocketSphinx's bundled model (``--model`` does
+not change that; ``--engine`` does). Spanish flies too when an engine with a Spanish model is present (a
+Vosk Spanish model, or Whisper via ``--model`` or a faster-whisper-base folder found in
+$GCS_VOICE_SHARED, ../shared or beside the checkout); which engine and model each language uses, and
+what is skipped, is said with why.
 Outputs go to the current directory (or ``--out``): ``demo-LANG.tlog``, ``.jsonl`` and ``.png``.
 """
 
@@ -19,7 +21,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lang", choices=("en", "es", "all"), default="all",
                         help="which sequence(s) to fly (default all: every language an engine is available for)")
     parser.add_argument("--engine", help="recogniser for every language (default: the best available per language)")
-    parser.add_argument("--model", help="model path for --engine (e.g. a faster-whisper model folder)")
+    parser.add_argument("--model", help="model path for Spanish (e.g. a faster-whisper model folder), or for every "
+                                        "language with --engine; English otherwise stays on PocketSphinx")
     parser.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot",
                         help="personality of the bundled simulator (default ardupilot)")
     parser.add_argument("--room", default=DEFAULT_ROOM, help=f"simulator room (default {DEFAULT_ROOM})")

@@ -40,32 +40,64 @@ def load_sequence(lang: str) -> list[DemoStep]:
     return [DemoStep(s["text"], AUDIO_DIR / s["file"], s["expect"], float(s["hold_s"])) for s in steps]
 
 
-def whisper_model_candidates() -> list[Path]:
-    """faster-whisper model folders the demo may use without being told: $GCS_VOICE_SHARED, ../shared."""
+def whisper_model_candidates() -> list[tuple[Path, str]]:
+    """faster-whisper model folders the demo may use without being told, each with where it was found:
+    $GCS_VOICE_SHARED, ../shared beside the current directory, the shared folder beside this checkout."""
     roots = []
     if os.environ.get("GCS_VOICE_SHARED"):
-        roots.append(Path(os.environ["GCS_VOICE_SHARED"]))
-    roots += [Path.cwd().parent / "shared", Path(__file__).resolve().parents[3] / "shared"]
-    return [r / "models" / "faster-whisper-base" for r in roots if (r / "models" / "faster-whisper-base").is_dir()]
+        roots.append((Path(os.environ["GCS_VOICE_SHARED"]), "$GCS_VOICE_SHARED"))
+    roots += [(Path.cwd().parent / "shared", "../shared beside the current directory"),
+              (Path(__file__).resolve().parents[3] / "shared", "the shared folder beside the gcs-voice checkout")]
+    out: list[tuple[Path, str]] = []
+    for root, where in roots:
+        folder = root / "models" / "faster-whisper-base"
+        if folder.is_dir() and all(folder.resolve() != p.resolve() for p, _ in out):
+            out.append((folder, where))
+    return out
 
 
-def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Any, list[str]]:
-    """Load the first engine that works for ``lang``: (voice tuple or None, notes on what was skipped and why)."""
+#: why each engine is the demo's choice when nobody named one
+_WHY = {
+    "sphinx": "the English default: its model is inside the pocketsphinx wheel, nothing to fetch",
+    "vosk": "a Vosk model for the language was found ($VOSK_MODEL_PATH, /usr/share/vosk, ~/.cache/vosk)",
+    "whisper": "no Vosk model for the language; Whisper scores the dictionary's phrases",
+}
+
+
+def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Any, list[str], str]:
+    """Load the first engine that works for ``lang``: (voice tuple or None, notes on what was skipped and why,
+    one line saying which engine and model fly the language, and why).
+
+    ``--model`` is for the languages that need a model: English stays on PocketSphinx (what its sequence
+    was chosen for, and what README promises) unless ``--engine`` names another engine."""
     from gcs_voice.session.run import load_voice
 
     notes: list[str] = []
     for name in ((engine,) if engine else ENGINE_ORDER.get(lang, ())):
-        models: list[str | None] = [model]
-        if name == "whisper" and model is None:
-            models = [str(p) for p in whisper_model_candidates()] or [None]
-        for candidate in models:
+        candidates: list[tuple[str | None, str]]
+        if engine is None and name == "sphinx":
+            candidates = [(None, "PocketSphinx's bundled US-English model")]
+        elif model is not None:
+            candidates = [(model, f"{model} (--model)")]
+        elif name == "whisper":
+            candidates = [(str(p), f"{p} (found in {where})") for p, where in whisper_model_candidates()]
+            candidates.append((None, "the model the engine finds itself ($GCS_VOICE_WHISPER_MODEL, its model folders)"))
+        else:
+            candidates = [(None, f"the {name} model the engine finds for {lang!r}")]
+        for candidate, described in candidates:
             try:
-                return load_voice(lang, name, candidate, None), notes
+                voice = load_voice(lang, name, candidate, None)
             except GcsVoiceError as exc:
                 notes.append(f"{lang}: {name} skipped: {exc}")
+                continue
             except ImportError as exc:
                 notes.append(f"{lang}: {name} skipped: package missing ({exc.name})")
-    return None, notes
+                break
+            why = "--engine" if engine else _WHY.get(name, "the first that loaded")
+            extra = ("; --model is for Spanish: add --engine whisper to fly English on it"
+                     if engine is None and name == "sphinx" and model is not None else "")
+            return voice, notes, f"{lang}: {getattr(voice[0], 'name', name)} with {described}; why: {why}{extra}"
+    return None, notes, f"{lang}: no recogniser"
 
 
 def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]:
@@ -134,9 +166,11 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
     pending = {lang: loader.submit(choose_voice, lang, engine, model) for lang in langs}
     loader.shutdown(wait=False)
     for lang in langs:
-        voice, notes = pending[lang].result()
+        voice, notes, choice = pending[lang].result()
         for note in notes:
             print(f"demo: {note}")
+        if voice is not None:
+            print(f"demo: {choice}")
         if voice is None:
             print(f"demo: {lang}: no recogniser available, sequence skipped")
             continue
