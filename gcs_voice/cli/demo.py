@@ -17,6 +17,21 @@ DEFAULT_SPEEDUP = 1.0
 DEFAULT_ROOM = "living_room"
 
 
+def _speedup(text: str) -> float:
+    """A positive number, or 'max' (infinity: the simulator is not paced), as ``gcs-sim --speedup`` takes."""
+    import math
+
+    if text.strip().lower() == "max":
+        return math.inf
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"{text!r}: a positive number or 'max'")
+    return value
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--lang", choices=("en", "es", "all"), default="all",
                         help="which sequence(s) to fly (default all: every language an engine is available for)")
@@ -26,8 +41,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--autopilot", choices=("ardupilot", "px4"), default="ardupilot",
                         help="personality of the bundled simulator (default ardupilot)")
     parser.add_argument("--room", default=DEFAULT_ROOM, help=f"simulator room (default {DEFAULT_ROOM})")
-    parser.add_argument("--speedup", type=float, default=DEFAULT_SPEEDUP,
-                        help=f"simulated seconds per wall second (default {DEFAULT_SPEEDUP:g})")
+    parser.add_argument("--speedup", type=_speedup, default=DEFAULT_SPEEDUP, metavar="N|max",
+                        help=f"simulated seconds per wall second (default {DEFAULT_SPEEDUP:g}); 'max' runs the "
+                             "simulator as fast as the CPU allows, as gcs-sim --speedup max (speech and setpoints "
+                             "keep wall time, so each action then lasts far longer in the simulator)")
     parser.add_argument("--out", type=Path, default=Path("."), metavar="DIR",
                         help="where the .tlog, .jsonl and .png go (default: current directory)")
     parser.add_argument("--json", action="store_true", help="print every event as a JSON line")

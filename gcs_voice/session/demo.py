@@ -6,6 +6,7 @@ hold times there are simulated seconds, divided by the simulator's speed-up to w
 
 from __future__ import annotations
 
+import math
 import os
 import time
 import tomllib
@@ -151,8 +152,13 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
     from gcs_voice.session.run import SessionConfig, run_session
     from gcs_voice.session.sim_process import BundledSim
 
-    if speedup <= 0:
-        raise GcsVoiceError("--speedup must be > 0")
+    if not speedup > 0:
+        raise GcsVoiceError("--speedup must be > 0 or 'max'")
+    pace = "max" if math.isinf(speedup) else f"{speedup:g}"
+    if math.isinf(speedup):
+        print("demo: speed-up max: the simulator runs as fast as this CPU allows; spoken commands and the 10 Hz "
+              "setpoints keep wall time, so every action lasts many simulated seconds and no hold is waited "
+              "for: expect a distorted flight (collisions are reported). A number (--speedup 2) flies the plan.")
     room_data = load_room(room)  # a bad room name fails before anything starts
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.monotonic()
@@ -176,7 +182,7 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
             continue
         steps = load_sequence(lang)
         print(f"demo: flying the {lang} sequence with {getattr(voice[0], 'name', '?')} "
-              f"(simulator: {autopilot}, room {room}, speed-up {speedup:g})")
+              f"(simulator: {autopilot}, room {room}, speed-up {pace})")
         script = [ScriptStep(s.path, s.hold_s / speedup, s.expect if s.expect in ("take_off", "land") else None)
                   for s in steps]
         stem = f"demo-{lang}"
