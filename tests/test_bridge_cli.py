@@ -57,6 +57,12 @@ def test_no_vehicle_is_one_line_exit_2_as_logged_and_leaves_no_files(tmp_path: P
     (["--takeoff-alt", "0.1"], "--takeoff-alt"),
     (["--floor", "3", "--ceiling", "2"], "--floor"),
     (["--takeoff", "8", "--ceiling", "5"], "--takeoff"),
+    (["--wait", "nan"], "--wait"),  # waited forever
+    (["--wait", "-1"], "--wait"),
+    (["--gap", "-1"], "--gap"),
+    (["--hold", "inf"], "--hold"),
+    (["--log-name", ""], "--log-name"),  # wrote hidden .tlog / .jsonl
+    (["--log-name", "../x/y"], "--log-name"),
 ])
 def test_motion_settings_out_of_range_are_refused_naming_the_flag(args: list[str], flag: str,
                                                                    tmp_path: Path) -> None:
@@ -78,3 +84,27 @@ def test_help_states_every_motion_range() -> None:
     for setting in ("horizontal_speed_m_s", "vertical_speed_m_s", "floor_m", "ceiling_m", "fence_radius_m",
                     "takeoff_altitude_m"):
         assert f"({limits[setting].describe()})" in text, setting
+
+
+def test_kill_while_waiting_for_the_vehicle_exits_143_and_leaves_no_files(tmp_path: Path) -> None:
+    """SIGTERM (kill, a service manager, ``timeout``) used to end the process on the spot, logs left behind."""
+    import json
+    import signal
+
+    port = free_udp_port()
+    proc = subprocess.Popen([sys.executable, "-m", "gcs_voice", "--connect", f"udpin:127.0.0.1:{port}", "--wait", "120",
+                             "--engine", "sphinx", "--say", str(demo_wav("hover")), "--headless", "--json",
+                             "--log-dir", str(tmp_path)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    try:
+        first = json.loads(proc.stdout.readline())  # the session has started: it is waiting for a vehicle
+        assert first["phase"] == "start"
+        proc.send_signal(signal.SIGTERM)
+        rest, _err = proc.communicate(timeout=30)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 143
+    assert json.loads(rest.splitlines()[-1])["exit_code"] == 143
+    assert list(tmp_path.iterdir()) == []

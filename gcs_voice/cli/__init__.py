@@ -61,8 +61,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     except GcsVoiceError as exc:
         print(f"gcs-voice: error: {exc}", file=sys.stderr)
         return 2  # = gcs_voice.session.run.USER_ERROR_EXIT, what the session log records
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:  # (SIGTERM / SIGHUP during a session come as one too, with .signum)
         print("gcs-voice: interrupted", file=sys.stderr)
-        return 130
+        return 128 + int(getattr(exc, "signum", 2))
 
 

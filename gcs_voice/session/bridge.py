@@ -37,6 +37,10 @@ LOOP_PERIOD_S = 0.05
 FINAL_STOP_S = 0.6
 #: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
 ON_GROUND_HEIGHT_M = 0.2
+#: signals that end a session with the vehicle stopped first: Ctrl-C, ``kill`` / a service manager, a
+#: closed terminal. The exit status is 128 + the signal's number (130, 143, 129), as a shell reports it.
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+_SIGNAL_WORDS = {"SIGINT": "interrupted (Ctrl-C)", "SIGTERM": "terminated (SIGTERM)", "SIGHUP": "hung up (SIGHUP)"}
 
 
 @dataclass
@@ -83,7 +87,8 @@ class Bridge:
         self.takeoff_m = takeoff_m
         self._requests: queue.Queue[Request] = queue.Queue()
         self._finish = threading.Event()
-        self._interrupted = False  # set by the SIGINT handler (a plain flag: no lock taken in a handler)
+        self._interrupted = False  # set by the signal handler (a plain flag: no lock taken in a handler)
+        self._signum = int(signal.SIGINT)
         self.halted_t: float | None = None  # UNIX time the SIGINT handler stopped the setpoint source
         self._busy: str | None = None  # flight operation in progress
         self._op_thread: threading.Thread | None = None
@@ -118,14 +123,15 @@ class Bridge:
     def run(self) -> int:
         """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
 
-        Ctrl-C halts the mapper (the setpoint source: the next setpoint the 10 Hz stream sends is a stop)
-        and sets a flag that the loop reads; nothing else happens in the handler: a KeyboardInterrupt
-        raised at an arbitrary bytecode could leave a lock (the link's, a queue's) held and hang the
-        final stop.
+        Ctrl-C (and SIGTERM, SIGHUP) halts the mapper (the setpoint source: the next setpoint the 10 Hz
+        stream sends is a stop) and sets a flag that the loop reads; nothing else happens in the handler:
+        a KeyboardInterrupt raised at an arbitrary bytecode could leave a lock (the link's, a queue's)
+        held and hang the final stop.
         """
-        previous = None
+        previous: dict[int, Any] = {}
         if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGINT, self._on_sigint)
+            for signum in STOP_SIGNALS:
+                previous[signum] = signal.signal(signum, self._on_sigint)
         try:
             while not self._finish.is_set() and not self._interrupted:
                 try:
@@ -143,20 +149,22 @@ class Bridge:
         finally:
             if self._interrupted:
                 self.mapper.halt()  # already done by the handler, unless it came as KeyboardInterrupt
-                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt",
-                              halted_t=self.halted_t)
-                self.exit_code = self.exit_code or 130
+                name = signal.Signals(self._signum).name
+                self.bus.emit("session", f"{_SIGNAL_WORDS.get(name, name)}: stopping the vehicle", phase="interrupt",
+                              signal=name, halted_t=self.halted_t)
+                self.exit_code = self.exit_code or 128 + self._signum
             try:
                 self.shutdown()
             finally:
-                if previous is not None:
-                    signal.signal(signal.SIGINT, previous)
+                for signum, handler in previous.items():
+                    signal.signal(signum, handler)
         return self.exit_code
 
-    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+    def _on_sigint(self, signum: int, _frame: Any) -> None:
         self.mapper.halt()  # first: every setpoint decided from here on is a stop
         if self.halted_t is None:
             self.halted_t = time.time()
+            self._signum = signum
         self._interrupted = True
 
     def _watch(self) -> None:

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from gcs_voice.errors import GcsVoiceError
-from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.session.bridge import STOP_SIGNALS, Bridge, Request
 from gcs_voice.session.collisions import CollisionWatch
 from gcs_voice.session.events import EventBus
 from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
@@ -93,8 +93,36 @@ def _script(config: SessionConfig) -> list[ScriptStep]:
     return [ScriptStep(p, config.gap_s if i < len(paths) - 1 else config.hold_s) for i, p in enumerate(paths)]
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM / SIGHUP before the flight loop: unwinds like Ctrl-C (logs closed, link closed)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, _frame: Any) -> None:
+    raise _Terminated(signum)
+
+
 def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None = None) -> SessionResult:
     """Fly one session to its end; the vehicle is stopped before this returns, whatever happened."""
+    import signal
+
+    previous: dict[int, Any] = {}
+    if threading.current_thread() is threading.main_thread():
+        # Before the flight loop (which stops the vehicle on these itself), kill / a closed terminal must
+        # still close the logs; the default action would end the process on the spot.
+        for signum in (s for s in STOP_SIGNALS if s != signal.SIGINT):
+            previous[signum] = signal.signal(signum, _raise_terminated)
+    try:
+        return _run_session(config, voice)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None) -> SessionResult:
     from gcs_voice.actions.mapper import ActionMapper
     from gcs_voice.link import VehicleLink
     from gcs_voice.settings import load_settings
@@ -116,18 +144,11 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     tlog, jsonl = session_paths(config.log_dir, config.log_name)
 
     bus = EventBus()
-    log = SessionLog(jsonl)
-    bus.subscribe(log)
     link = None
-    watch = CollisionWatch(bus, settings.hard_landing_m_s, mode=lambda: link.state.mode if link else None)
-    for subscriber in config.subscribers:
-        bus.subscribe(subscriber)
     view = None
-    if config.headless and not config.quiet:
-        from gcs_voice.session.headless import HeadlessPrinter
-
-        bus.subscribe(HeadlessPrinter(as_json=config.as_json))
-    bus.subscribe(watch)  # after the printers: a hit is printed after the vehicle's text that says it
+    watch = CollisionWatch(bus, settings.hard_landing_m_s, mode=lambda: link.state.mode if link else None)
+    exit_code = 1
+    error: str | None = None
 
     def link_said(line: str) -> None:
         if line.startswith("vehicle: "):
@@ -135,12 +156,19 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         elif not line.startswith("link "):  # link transitions are said by the bridge, once
             bus.emit("warning", line, source="link")
 
-    bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
-             argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
-             engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-    exit_code = 1
-    error: str | None = None
-    try:
+    log = SessionLog(jsonl)
+    try:  # from the moment a log file exists: whatever happens, the finally below closes (or removes) it
+        bus.subscribe(log)
+        for subscriber in config.subscribers:
+            bus.subscribe(subscriber)
+        if config.headless and not config.quiet:
+            from gcs_voice.session.headless import HeadlessPrinter
+
+            bus.subscribe(HeadlessPrinter(as_json=config.as_json))
+        bus.subscribe(watch)  # after the printers: a hit is printed after the vehicle's text that says it
+        bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
+                 argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
+                 engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
         link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
         link.open()
         mapper = ActionMapper(settings)
@@ -178,9 +206,11 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         exit_code = bridge.run()
         if watch.count:  # a flight that hit something did not go well, whatever else went right
             exit_code = exit_code or COLLISION_EXIT
-    except KeyboardInterrupt:
-        bus.emit("session", "interrupted (Ctrl-C) before the flight loop", phase="interrupt")
-        exit_code = 130
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, _Terminated) else 2
+        bus.emit("session", f"{'interrupted (Ctrl-C)' if signum == 2 else f'signal {signum}'} before the flight loop",
+                 phase="interrupt")
+        exit_code = 128 + signum
     except GcsVoiceError as exc:  # the CLI prints it in one line and exits 2: the log says the same
         exit_code, error = USER_ERROR_EXIT, str(exc)
         raise
