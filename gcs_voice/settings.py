@@ -150,8 +150,8 @@ def _validated(values: dict[str, Any], base: Settings | None, source: str,
             check_setting(f.name, getattr(settings, f.name), _label(source, f.name, names))
 
     def said(key: str) -> str:
-        if key in values:
-            return f"{_label(source, key, names)} ({getattr(settings, key):g})"
+        if key in values and names and key in names:
+            return f"{names[key]} ({getattr(settings, key):g})"
         hint = f"; {names[key]} sets it" if names and key in names else ""
         return f"{key} ({getattr(settings, key):g}{hint})"
 
