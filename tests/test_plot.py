@@ -94,6 +94,18 @@ def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
     assert "Traceback" not in proc.stderr
 
 
+def test_unwritable_outputs_are_one_line(tlogs_dir: Path, tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    for cmd in (["plot", str(tlogs_dir / "px4-sih-offboard-velocity.tlog"), "-o", str(blocker / "x.png")],
+                ["demo", "--lang", "en", "--out", str(blocker / "out")]):
+        proc = subprocess.run([sys.executable, "-m", "gcs_voice", *cmd], cwd=REPO, capture_output=True, text=True,
+                              timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.startswith("gcs-voice: error:") and proc.stderr.count("\n") == 1, proc.stderr
+        assert str(blocker) in proc.stderr
+
+
 def _overlaps(boxes: list) -> list[tuple[int, int]]:
     return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes)) if boxes[i].overlaps(boxes[j])]
 

@@ -160,7 +160,10 @@ def run_demo(langs: tuple[str, ...], engine: str | None, model: str | None, auto
               "setpoints keep wall time, so every action lasts many simulated seconds and no hold is waited "
               "for: expect a distorted flight (collisions are reported). A number (--speedup 2) flies the plan.")
     room_data = load_room(room)  # a bad room name fails before anything starts
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise GcsVoiceError(f"--out {out_dir}: cannot create it ({exc.strerror or exc})") from None
     started = time.monotonic()
     worst = 0
     flown: list[str] = []

@@ -348,9 +348,13 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
 
     fig = draw_flight(tlog, room, session_log, title)
     out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png)
-    plt.close(fig)
+    try:
+        out_png.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out_png)
+    except OSError as exc:
+        raise PlotError(f"cannot write {out_png}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
     return out_png
 
 
