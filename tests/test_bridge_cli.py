@@ -108,3 +108,23 @@ def test_kill_while_waiting_for_the_vehicle_exits_143_and_leaves_no_files(tmp_pa
     assert proc.returncode == 143
     assert json.loads(rest.splitlines()[-1])["exit_code"] == 143
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_refused_takeoff_ends_the_session_at_once(tmp_path: Path) -> None:
+    """--takeoff that the vehicle refuses (arming never allowed) ends the session with exit 1 right away,
+    instead of the script waiting out its ready timeout (arm + take-off timeouts + 30 s)."""
+    import json
+
+    from link_peer import ScriptedVehicle
+
+    config = tmp_path / "quick.toml"
+    config.write_text("[link]\narm_timeout_s = 2.0\narm_retry_s = 0.5\n")
+    with ScriptedVehicle(autopilot="ardupilot", arm_refusals=10_000) as vehicle:
+        proc = _fly("--connect", vehicle.connection, "--wait", "10", "--engine", "sphinx", "--say",
+                    str(demo_wav("hover")), "--takeoff", "1.5", "--config", str(config), "--json",
+                    "--log-name", "s", tmp_path=tmp_path)
+    assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr
+    events = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]
+    assert any(e["kind"] == "error" and "take_off failed" in e["msg"] for e in events)
+    assert not any("did not become ready" in e["msg"] for e in events)  # the old way out: a 60 s wait
+    assert events[-1]["phase"] == "end" and events[-1]["exit_code"] == 1

@@ -271,6 +271,11 @@ class Bridge:
             request.accepted = ok
             if ok and action == "take_off":
                 self.flying_ready.set()
+            elif action == "take_off" and request.origin == "script":
+                # --takeoff (or the demo's scripted take-off) failed: nothing the script says can fly now,
+                # so end at once instead of waiting out the script's ready timeout.
+                self.bus.emit("error", f"take_off failed ({result}): ending the session", what=action)
+                self.finish(1)
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
         finally:
