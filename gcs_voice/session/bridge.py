@@ -9,11 +9,13 @@ Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) a
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
 - motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
   the reason (a setpoint would cut an ArduCopter take-off short near the ground);
-- disarm while flying: refused (a misheard word must not drop the vehicle);
+- disarm while flying: refused (a misheard word must not drop the vehicle); land while disarmed (after
+  a crash): refused, so that it cannot look done;
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
-- whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
-  which commands a stop and keeps it on the wire before the link closes.
+- whatever ends the session (end of script, Ctrl-C / SIGTERM / SIGHUP, a crash of the voice side, a
+  refused ``--takeoff``) ends in ``shutdown``, which commands a stop and keeps it on the wire before the
+  link closes; a signal halts the mapper in its handler, so the stream turns to stop at once.
 """
 
 from __future__ import annotations
