@@ -7,8 +7,8 @@ next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home, or abov
 downward rangefinder sees (a table), whichever is nearer; climbs stop at ``ceiling_m``;
 horizontal motion stops at ``fence_radius_m`` from home (only the outward motion). Unknown height or
 position counts as "at the limit": the mapper does not command what it cannot check. A lost link
-turns the action into ``stop``, so the first setpoint after the link returns is a hold.
-NaN never leaves the mapper.
+turns the action into ``stop``, so the first setpoint after the link returns is a hold. ``halt()``
+(Ctrl-C) makes every later setpoint a stop at once, whatever thread asks next. NaN never leaves the mapper.
 
 Holds (positions carried with the setpoint, see ``actions.setpoint``): ``stop`` holds the point and
 height where it was heard; a turn holds the point it started from; ``go_*`` hold their height;
@@ -93,6 +93,19 @@ class ActionMapper:
         #: the held horizontal point (north, east) and height (down), local NED metres; None = not held
         self.hold_point: tuple[float, float] | None = None
         self.hold_down_m: float | None = None
+        #: set by halt(): a plain flag, because a signal handler sets it (no lock may be taken there)
+        self._halted = False
+
+    def halt(self) -> None:
+        """From now on every setpoint is a stop and no motion is taken (Ctrl-C: safe in a signal handler).
+
+        The streamer asks ``setpoint()`` at 10 Hz in its own thread, so the very next setpoint is a stop,
+        not the one after the session loop has noticed."""
+        self._halted = True
+
+    @property
+    def halted(self) -> bool:
+        return self._halted
 
     def _init_yaw(self, state: VehicleState) -> float:
         if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
@@ -119,6 +132,9 @@ class ActionMapper:
             self.action = "stop"
             self.hold_point = self.hold_down_m = None   # the operation moves the vehicle: take it afresh
             return MappedAction(action, action, yaw)
+        if self._halted:  # after Ctrl-C nothing moves the vehicle again
+            self.action = "stop"
+            return MappedAction("stop", None, yaw)
         if action == "turn_right":
             yaw = self.yaw_target_deg = wrap_deg(yaw + self.settings.turn_step_deg)
         elif action == "turn_left":
@@ -153,6 +169,8 @@ class ActionMapper:
     def _setpoint(self, state: VehicleState) -> Setpoint:
         yaw = self._init_yaw(state)
         reasons: list[str] = []
+        if self._halted:
+            self._switch_to_stop("halted (Ctrl-C)")
         if state.last_heard_s is not None and not state.link_ok:
             self._switch_to_stop("link lost", state)
         height = state.height_m if _finite(state.height_m) else None

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Setpoint", "body_to_ned", "wrap_deg"]
+__all__ = ["Setpoint", "body_to_ned", "wrap_deg", "round_deg"]
 
 
 def wrap_deg(angle_deg: float) -> float:
@@ -21,6 +21,11 @@ def wrap_deg(angle_deg: float) -> float:
     if wrapped < 0:
         wrapped += 360.0
     return 0.0 if wrapped >= 360.0 else wrapped + 0.0  # + 0.0 turns -0.0 into 0.0
+
+
+def round_deg(angle_deg: float, ndigits: int = 1) -> float:
+    """An angle rounded for display, in [0, 360): rounding after wrapping turned 359.97 into 360.0."""
+    return round(wrap_deg(round(wrap_deg(angle_deg), ndigits)), ndigits) + 0.0
 
 
 @dataclass(frozen=True)

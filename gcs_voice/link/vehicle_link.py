@@ -203,14 +203,14 @@ class VehicleLink(FlightOperations):
         with self._changed:
             self._changed.notify_all()
 
-    def _send(self, msg: Any) -> None:
+    def _send(self, msg: Any, time_s: float | None = None) -> None:
         with self._send_lock:
             try:
                 self._conn.mav.send(msg)
             except OSError:
                 return
             if self.tlog is not None:
-                self.tlog.write(msg.get_msgbuf())
+                self.tlog.write(msg.get_msgbuf(), time_s)
 
     # ---- setpoint stream ------------------------------------------------------------------------
     def start_stream(self, source: SetpointSource | None = None) -> None:
@@ -247,6 +247,7 @@ class VehicleLink(FlightOperations):
             source, state = self._source, self.tracker.snapshot(time.monotonic())
         if source is None or state.system_id is None:
             return
+        decided_s = time.time()  # before the source decides: see send_setpoint
         if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
             try:
                 source(state)
@@ -258,11 +259,15 @@ class VehicleLink(FlightOperations):
         except Exception as exc:  # a broken source must not leave the last velocity running
             self.on_event(f"setpoint source failed ({exc}); holding")
             setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
-        self.send_setpoint(setpoint)
+        self.send_setpoint(setpoint, decided_s)
 
-    def send_setpoint(self, setpoint: Setpoint) -> bool:
+    def send_setpoint(self, setpoint: Setpoint, decided_s: float | None = None) -> bool:
         """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
-        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then."""
+        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then.
+
+        ``decided_s`` (UNIX time read *before* the setpoint was computed) stamps the .tlog record, so the
+        log orders a setpoint by when it was decided: one stamped after a source switched to stop was
+        computed after the switch (Ctrl-C: every setpoint after the halt time is a stop)."""
         state = self.state
         if state.system_id is None or not state.link_ok:
             return False
@@ -273,7 +278,7 @@ class VehicleLink(FlightOperations):
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
         separately = state.profile.position_axes_separately if state.profile else False
         fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms, separately)
-        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
+        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields), decided_s)
         self.last_setpoint = setpoint
         self.setpoints_sent += 1
         return True

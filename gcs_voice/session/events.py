@@ -26,6 +26,7 @@ KINDS: dict[str, str] = {
     "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
     "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
+    "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }
