@@ -124,7 +124,7 @@ class FlightOperations:
     @property
     def ready_timeout_s(self: "VehicleLink") -> float:
         """How long ``arm`` waits, by default, for the vehicle to become ready and armed."""
-        return max(self.settings.arm_timeout_s, self.readiness_rules.timeout_s)
+        return self.settings.arm_timeout_s
 
     def readiness(self: "VehicleLink") -> Readiness:
         """What the vehicle still lacks before it can be armed (its own signals; see ``link.readiness``)."""

@@ -43,7 +43,6 @@ WAIT, SET_MODE, ARM, READY = "wait", "set mode", "arm", "ready"
 
 @dataclass(frozen=True)
 class ReadinessRules:
-    timeout_s: float = 180.0
     mode_settle_s: float = 1.0
     heartbeat_max_age_s: float = 1.5
     home_request_s: float = 5.0
@@ -54,7 +53,7 @@ def load_rules() -> ReadinessRules:
     """The packaged ``readiness.toml``."""
     data = tomllib.loads(resources.files("gcs_voice.link").joinpath("readiness.toml").read_text(encoding="utf-8"))
     ready, landing = data["ready"], data["landing"]
-    return ReadinessRules(float(ready["timeout_s"]), float(ready["mode_settle_s"]),
+    return ReadinessRules(float(ready["mode_settle_s"]),
                           float(ready["heartbeat_max_age_s"]), float(ready["home_request_s"]),
                           float(landing["timeout_s"]))
 
