@@ -172,17 +172,18 @@ def test_silero_segmenter_cuts_overlong_speech(tmp_path):
     assert max(u.duration_s for u in utterances) <= 3.0 + 0.05
 
 
-def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db():
+def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_dir):
     """A few real commands at pauses over the real kitchen noise at 12 dB: one segment each.
 
     The energy VAD merged such utterances (29 segments for 60); the streaming Silero VAD must not.
     (It does miss some quiet one-word recordings: see docs/bench/stream.md for the counts.)
     """
+    from conftest import shared_path
     from tools import bench_stream
 
-    commands = [c for c in bench_stream.held_out(part="test") if c.kind == "command"]
+    commands = [c for c in bench_stream.held_out(real_speech_dir, part="test") if c.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(5).permutation(len(commands))[:6]]
-    noise = bench_stream.read_wav(bench_stream.SHARED / "noise" / "doing_the_dishes.wav")
+    noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
     x, placed = bench_stream.build_stream(clips, noise, 12.0, seed=5, pause_s=(1.0, 2.5))
     pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     utterances = list(segment_utterances(pcm_to_chunks(pcm), load_vad_settings(method="silero")))

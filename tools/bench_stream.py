@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-SHARED = Path(os.environ.get("GCS_SHARED", "/work/shared"))
+#: ../shared beside the checkout (as the tests find it); GCS_VOICE_SHARED overrides
+SHARED = Path(os.environ.get("GCS_VOICE_SHARED", ROOT.parent / "shared"))
 RATE = 16_000
 NOISE_FILES = {"kitchen": "doing_the_dishes.wav", "tap": "running_tap.wav", "machine": "exercise_bike.wav",
                "cat": "dude_miaowing.wav"}

@@ -6,8 +6,8 @@ the Spanish words get phone strings in ``stop_spotter.toml``) on each utterance 
 recogniser: a few tens of milliseconds. When it fires the session stops the vehicle at once; the main
 decision follows and may command something else. A false stop costs a pause, a late stop a wall.
 
-Every utterance starts from the model's initial cepstral mean, so the answer does not depend on what
-was heard before.
+Every utterance starts from freshly initialised features (``reinit_feat``: the cepstral mean and the
+rest), so the answer does not depend on what was heard before.
 """
 
 from __future__ import annotations
@@ -77,7 +77,6 @@ class StopSpotter:
         finally:
             Path(kws_file).unlink(missing_ok=True)
         self.decoder.activate_search("stop")
-        self.initial_cmn = self.decoder.get_cmn()
         self.words = [line.split()[0] for line in lines]
         self._lock = threading.Lock()
 
@@ -119,7 +118,7 @@ class SpotStream:
         if not self._open:
             self.spotter._lock.acquire()
             self._open = True
-            d.set_cmn(self.spotter.initial_cmn)
+            d.reinit_feat()  # fresh features: set_cmn alone left state behind (same audio, other words)
             d.start_utt()
         d.process_raw(pcm, False, False)
         if self.word is None:

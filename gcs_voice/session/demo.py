@@ -75,7 +75,9 @@ def _summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]
     for i, h in enumerate(heard):
         by_end[h.get("utterance_end_t")] = i
     for e in events:
-        if e["kind"] in ("command", "rejected") and e.get("utterance_end_t") in by_end:
+        # the main decision, not the stop spotter's early stop (which may be followed by another action)
+        if (e["kind"] in ("command", "rejected") and e.get("origin") != "spotter"
+                and e.get("utterance_end_t") in by_end):
             outcome.setdefault(by_end[e["utterance_end_t"]], e)
     lines, good = [], 0
     for i, step in enumerate(steps):
