@@ -12,7 +12,10 @@ the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire af
 tlog). A stop heard by the stop spotter goes out before the main recogniser runs; one it misses waits for
 the main decision (or never comes: missed).
 
-    python -m tools.bench_stop_latency --out docs/bench/stop_latency.md
+    python -m tools.bench_stop_latency --out docs/bench/latency.md
+
+``--out`` replaces this benchmark's section ("## Stop latency with both cores loaded") in that file, or
+appends it: the rest of the file (tools/bench_latency.py's tables) stays.
 """
 
 from __future__ import annotations
@@ -137,8 +140,22 @@ def main(argv: list[str] | None = None) -> int:
     ])
     print(report)
     if args.out:
-        Path(args.out).write_text(report, encoding="utf-8")
+        write_section(Path(args.out), report)
     return 0
+
+
+def write_section(path: Path, section: str) -> None:
+    """Replace the section that starts with ``section``'s heading (up to the next "## "), or append it."""
+    heading = section.splitlines()[0]
+    text = path.read_text(encoding="utf-8") if path.is_file() else ""
+    if heading in text:
+        before, rest = text.split(heading, 1)
+        nxt = rest.find("\n## ")
+        after = rest[nxt + 1:] if nxt >= 0 else ""
+        text = before + section + ("\n" + after if after else "")
+    else:
+        text = text.rstrip("\n") + ("\n\n" if text else "") + section
+    path.write_text(text, encoding="utf-8")
 
 
 if __name__ == "__main__":

@@ -36,6 +36,8 @@ CHUNK_BYTES = 3200  # 0.1 s of 16 kHz int16: what a microphone callback would de
 BYTES_PER_S = 32_000
 #: a decision later than this after the end of its utterance is said: the pilot may have moved on
 LATE_S = 2.0
+#: how long the voice side waits for the bridge to send a spotted stop before it goes on
+STOP_WAIT_S = 1.0
 
 
 class StopPath:
@@ -77,7 +79,10 @@ class StopPath:
         now = time.time()
         self.bus.emit("spotted", f"stop word {word!r} heard{' (still speaking)' if during else ''}: stopping now",
                       word=word, utterance_end_t=end_t, spotted_t=now)
-        bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
+        request = bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
+        # Wait (a few ms) until the bridge has sent it: the main recogniser that runs next may hold the
+        # interpreter for a second (PocketSphinx decodes without releasing the GIL) and starve the bridge.
+        request.done.wait(STOP_WAIT_S)
 
 
 @dataclass(frozen=True)
