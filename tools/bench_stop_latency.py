@@ -45,10 +45,8 @@ def hog(n: int) -> list[subprocess.Popen]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from gcs_voice.session.flight_log import read_flight
     from gcs_voice.session.listen import ScriptStep
     from gcs_voice.session.run import SessionConfig, load_voice, run_session
-    from gcs_voice.session.session_log import read_session_log
     from gcs_voice.session.sim_process import BundledSim
 
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
@@ -60,6 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--no-spotter", action="store_true", help="without the stop spotter (for comparison)")
     p.add_argument("--out", default=None)
     p.add_argument("--speech", type=Path, default=SHARED / "speech")
+    p.add_argument("--from", dest="from_dir", type=Path, default=None,
+                   help="analyse the session this tool left in DIR (stop.jsonl, stop.tlog) instead of flying")
     args = p.parse_args(argv)
 
     stops = [c.path for c in held_out(args.speech, part="test") if c.truth == "stop"]
@@ -76,6 +76,9 @@ def main(argv: list[str] | None = None) -> int:
         x = read_wav(s)
         _, _, v1 = voiced_level(x)
         voiced_tail[s.name] = (x.size - v1) / RATE  # seconds of the file after its last voiced frame
+    if args.from_dir:
+        return report(args, argv, stops, *analyse(args.from_dir / "stop.jsonl", args.from_dir / "stop.tlog", stops,
+                                                  voiced_tail), load=("-", "-"), work=args.from_dir)
     work = Path(tempfile.mkdtemp(prefix="bench-stop-"))
     voice = load_voice("en", args.engine, args.model, None)
     hogs = hog(args.hogs)
@@ -91,38 +94,17 @@ def main(argv: list[str] | None = None) -> int:
         for h in hogs:
             h.kill()
             h.wait()
-    events = read_session_log(result.jsonl)
-    flight = read_flight(result.tlog)
-    thinking = {e["source"]: e["utterance_end_t"] for e in events if e["kind"] == "thinking"}
-    spotted_l, all_l, missed = [], [], 0
-    for s in stops:
-        end_t = thinking.get(s.name)
-        if end_t is None:
-            missed += 1
-            continue
-        speech_end = end_t - voiced_tail[s.name]
-        # the stop command for this utterance: the first stop sent after the utterance began
-        cmds = [e for e in events if e["kind"] == "command" and e["action"] == "stop"
-                and e.get("sent_t", 0) >= speech_end - 1.0 and e.get("origin") in ("spotter", "voice")]
-        cmds = [c for c in cmds if c["sent_t"] <= end_t + 60]
-        if not cmds:
-            missed += 1
-            continue
-        first = min(cmds, key=lambda c: c["sent_t"])
-        wire = next((sp for sp in flight.setpoints if sp.t_s >= first["sent_t"] - 0.002
-                     and abs(sp.vx_m_s) < 0.02 and abs(sp.vy_m_s) < 0.02 and abs(sp.vz_m_s) < 0.02), None)
-        if wire is None:
-            missed += 1
-            continue
-        ms = (wire.t_s - speech_end) * 1000
-        all_l.append(ms)
-        if first.get("origin") == "spotter":
-            spotted_l.append(ms)
+    return report(args, argv, stops, *analyse(result.jsonl, result.tlog, stops, voiced_tail),
+                  load=(f"{load_before:.1f}", f"{load_after:.1f}"), work=work)
+
+
+def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path], spotted_l: list[float],
+           all_l: list[float], missed: int, load: tuple[str, str], work: Path) -> int:
     shown = " ".join(["python -m tools.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
     fmt = lambda v: f"{percentile(v, .5):.0f} | {percentile(v, .95):.0f}" if v else "- | -"  # noqa: E731
     lines = [
         f"| stop spotter, then {args.engine} | {len(stops)} | {len(spotted_l)} | {fmt(spotted_l)} | {len(all_l)} | "
-        f"{fmt(all_l)} | {missed} | {load_before:.1f} / {load_after:.1f} |",
+        f"{fmt(all_l)} | {missed} | {load[0]} / {load[1]} |",
     ]
     report = "\n".join([
         "## Stop latency with both cores loaded",
@@ -132,7 +114,8 @@ def main(argv: list[str] | None = None) -> int:
         "Stops: the real \"stop\" recordings of the held-out test part of `../shared/speech`, each after a motion "
         "(demo recording; done by the script if not heard). Clock origin: the end of speech (the recording's last "
         "voiced frame, fed at speaking pace); end: the first zero-velocity setpoint on the wire (tlog). "
-        "Milliseconds.",
+        f"Milliseconds; negative: the stop was on the wire before the recording's last voiced frame (the spotter "
+        f"fires while the word is still being said). Session log and tlog: `{work}`.",
         "",
         "| path | stops said | stopped by the spotter | p50 | p95 | stopped at all | p50 | p95 | missed | load |",
         "|---|---|---|---|---|---|---|---|---|---|",
@@ -142,6 +125,47 @@ def main(argv: list[str] | None = None) -> int:
     if args.out:
         write_section(Path(args.out), report)
     return 0
+
+
+def analyse(jsonl: Path, tlog: Path, stops: list[Path], voiced_tail: dict[str, float]
+            ) -> tuple[list[float], list[float], int]:
+    """Per stop recording: ms from its end of speech to the stop on the wire (spotted ones, all), and misses.
+
+    The stop of an utterance is the spotter's, sent while it was being fed (from its first chunk to its
+    ``thinking`` event), else the main decision's stop right after its ``heard`` event.
+    """
+    from gcs_voice.session.flight_log import read_flight
+    from gcs_voice.session.session_log import read_session_log
+
+    events = read_session_log(jsonl)
+    flight = read_flight(tlog)
+    spotted_l, all_l, missed = [], [], 0
+    for s in stops:
+        thinking = next((e for e in events if e["kind"] == "thinking" and e.get("source") == s.name), None)
+        heard = next((e for e in events if e["kind"] == "heard" and e.get("source") == s.name), None)
+        if thinking is None:
+            missed += 1
+            continue
+        end_t = thinking["utterance_end_t"]
+        fed_from = end_t - voiced_tail[s.name] - 1.5  # a recording here is at most ~1 s; with margin
+        stops_sent = [e for e in events if e["kind"] == "command" and e.get("action") == "stop" and e.get("sent_t")]
+        spot = [e for e in stops_sent if e.get("origin") == "spotter" and fed_from <= e["sent_t"] <= thinking["t"] + 0.5]
+        main = [e for e in stops_sent if e.get("origin") == "voice" and heard is not None
+                and heard["t"] - 0.01 <= e["sent_t"] <= heard["t"] + 1.0]
+        first = (spot or main or [None])[0]
+        if first is None:
+            missed += 1
+            continue
+        wire = next((sp for sp in flight.setpoints if sp.t_s >= first["sent_t"] - 0.002
+                     and abs(sp.vx_m_s) < 0.02 and abs(sp.vy_m_s) < 0.02 and abs(sp.vz_m_s) < 0.02), None)
+        if wire is None:
+            missed += 1
+            continue
+        ms = (wire.t_s - (end_t - voiced_tail[s.name])) * 1000
+        all_l.append(ms)
+        if first.get("origin") == "spotter":
+            spotted_l.append(ms)
+    return spotted_l, all_l, missed
 
 
 def write_section(path: Path, section: str) -> None:
