@@ -169,10 +169,14 @@ def write_truth(path: Path, placed: list[Placed]) -> None:
 def source_digest() -> str:
     """Digest of the bridge's sources and data: a change in them invalidates the cached runs."""
     h = hashlib.sha256()
+    import tomllib
+
     for p in sorted((ROOT / "gcs_voice").rglob("*")):
         if p.suffix in (".py", ".toml") and p.is_file():
             h.update(str(p.relative_to(ROOT)).encode())
-            h.update(p.read_bytes())
+            # TOML by its values: a comment edited in a settings file does not invalidate the runs
+            h.update(json.dumps(tomllib.loads(p.read_text(encoding="utf-8")), sort_keys=True, default=str).encode()
+                     if p.suffix == ".toml" else p.read_bytes())
     return h.hexdigest()[:16]
 
 
@@ -302,6 +306,9 @@ def main(argv: list[str] | None = None) -> int:
         f"`{shown_cmd.rsplit(' ', 1)[0]} STREAM.wav`.",
         "A command is right when its segments carry its action and no other, wrong when any other action, missed "
         "when none. A false action is an action during non-command speech (words, sentences) or noise alone.",
+        f"Segmenter: {args.vad or 'vad.toml default (silero)'}; no stop spotter here (`recognize` is the main "
+        "recogniser only; the spotter is measured in stop.md). A missed command is either not segmented (fewer "
+        "segments than utterances) or segmented and rejected by the recogniser's decision.",
         f"Load average at the end of the run: {os.getloadavg()[0]:.1f} (2 cores).",
         "",
         "| noise | SNR dB | minutes | segments / utterances | commands right | wrong | missed | "
