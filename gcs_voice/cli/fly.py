@@ -62,6 +62,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     mic = voice.add_mutually_exclusive_group()
     mic.add_argument("--push-to-talk", action="store_true",
                      help="listen only while toggled with Enter (default: always listening)")
+    voice.add_argument("--no-stop-spotter", action="store_true",
+                       help="do not run the stop spotter before the recogniser (a stop then waits for the main "
+                            "decision like any word)")
     mic.add_argument("--say", nargs="+", type=Path, metavar="WAV",
                      help="feed these recorded utterances in order, as if spoken, instead of the microphone")
     voice.add_argument("--gap", type=_seconds(positive=False), default=3.0, metavar="S",
@@ -106,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         hold_s=args.hold, takeoff_m=args.takeoff, push_to_talk=args.push_to_talk, headless=args.headless,
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
         setting_overrides=overrides, setting_names=names, link_security=security_from_args(args),
+        stop_spotter=not args.no_stop_spotter,
     )
     return run_session(config).exit_code
 

@@ -114,7 +114,8 @@ def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], 
         i = by_end.get(e.get("utterance_end_t"))
         if i is None:
             continue
-        if e["kind"] in ("command", "rejected", "refused"):
+        # the main decision, not the stop spotter's early stop (which may be followed by another action)
+        if e["kind"] in ("command", "rejected", "refused") and e.get("origin") != "spotter":
             outcome.setdefault(i, e)
         elif e["kind"] == "flight":
             flown.setdefault(i, e)

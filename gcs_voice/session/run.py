@@ -60,6 +60,8 @@ class SessionConfig:
     link_security: Any = None
     #: how the user wrote each override (its flag), for error messages
     setting_names: dict[str, str] = field(default_factory=dict)
+    #: run the stop spotter before the main recogniser (a stop word stops at once)
+    stop_spotter: bool = True
 
 
 @dataclass
@@ -86,6 +88,20 @@ def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: s
     recognizer = load_recognizer(engine_name, dictionaries, model=model)
     matcher = get_matcher(matcher_name or DEFAULT_MATCHER)
     return recognizer, matcher, dictionaries, stream_lang
+
+
+def _stop_spotter(config: SessionConfig, dictionaries: Sequence[Any], bus: Any) -> Any:
+    """The stop spotter for the session's languages, or None (said once) when off or unavailable."""
+    if not config.stop_spotter:
+        return None
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.errors import GcsVoiceError
+
+    try:
+        return load_stop_spotter(sorted({d.language for d in dictionaries}))
+    except (GcsVoiceError, ImportError) as exc:
+        bus.emit("warning", f"no stop spotter ({exc}): a stop waits for the main recogniser like any word")
+        return None
 
 
 def _script(config: SessionConfig) -> list[ScriptStep]:
@@ -191,7 +207,8 @@ def _run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None]
         telemetry = link.request_telemetry()
         if not telemetry.ok:
             bus.emit("warning", f"telemetry request: {telemetry}")
-        pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus)
+        pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus,
+                                 stop_spotter=_stop_spotter(config, dictionaries, bus))
         ready: threading.Event | None = None
         if config.takeoff_m is not None:
             bridge.submit(Request("take_off", "script"))
@@ -203,8 +220,11 @@ def _run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None]
             from gcs_voice.audio.microphone import microphone_utterances
             from gcs_voice.session.keys import talk
 
+            stop_path = pipeline.stop_path
+            on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
             start_voice_thread(bridge, run_microphone, pipeline, bridge,
-                               microphone_utterances(talk if config.push_to_talk else None))
+                               microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech),
+                               stop_path is not None)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
 
