@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.asr_speech import say
+from tests.asr_speech import need, say
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -49,6 +49,24 @@ def test_plain_lines_and_default_engine(wavs):
     first, second = proc.stdout.decode().splitlines()
     assert "'turn right'" in first and "-> turn_right" in first and " ms" in first
     assert "-> none" in second
+
+
+def test_same_file_same_answer_whatever_came_before(wavs, real_speech_dir, tmp_path):
+    """Issue 10 item 6: ``recognize up.wav up.wav up.wav`` gave three confidences, and an 8-bit copy of
+    a real "stop" was heard as ``down`` at 1.00 as the 7th file. Each line must equal the file alone."""
+    need("sox")
+    real_stop = sorted((real_speech_dir / "en" / "stop").glob("*.wav"))[0]
+    eight_bit = tmp_path / "stop_8bit.wav"
+    subprocess.run(["sox", "-R", str(real_stop), "-b", "8", "-e", "unsigned-integer", str(eight_bit)], check=True)
+    up = sorted((real_speech_dir / "en" / "up").glob("*.wav"))[0]
+    others = [str(wavs[t]) for t in ("go up", "turn right", "stop", "what time is it")]
+    files = [str(up), str(up), *others, str(eight_bit), str(up)]
+    rows = _rows(recognize(*files, "--engine", "sphinx", "--json"))
+    alone = {f: _rows(recognize(f, "--engine", "sphinx", "--json"))[0] for f in (str(up), str(eight_bit))}
+    for row in rows:
+        if row["file"] in alone:
+            expected = alone[row["file"]]
+            assert {k: v for k, v in row.items() if k != "ms"} == {k: v for k, v in expected.items() if k != "ms"}
 
 
 def test_stdin_pcm(wavs):
