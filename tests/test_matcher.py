@@ -225,6 +225,31 @@ def test_near_command_heard_clearly_does_nothing(phrase: str, transcript: str) -
     assert decision.action is None and f"is not '{phrase}'" in decision.reason
 
 
+@pytest.mark.parametrize("name", ["levenshtein", "phonetic"])
+@pytest.mark.parametrize(("phrase", "transcript"), [
+    ("derecha", "Muestra la memoria"),  # real Spanish speech, transcribed perfectly, flew go_right (issue 10)
+    ("para", "Para un proyecto"), ("adelante", "Vamos adelante con el plan"),
+    ("a la derecha", "A la derecha está la cocina"), ("sube", "El ascensor sube hasta el quinto piso"),
+    ("go right", "The right answer"), ("go left", "I left my keys in the car"),
+])
+def test_confident_transcript_with_words_beyond_a_command_does_nothing(name: str, phrase: str, transcript: str) -> None:
+    """A command word said in passing: the whole text may be near a phrase, but other words are there."""
+    dictionary = EN if phrase.startswith("go ") else ES
+    decision = get_matcher(name).decide(_scored(phrase, transcript, -0.3, 1.0), [dictionary])
+    assert decision.action is None, decision
+
+
+@pytest.mark.parametrize("name", ["levenshtein", "phonetic"])
+@pytest.mark.parametrize(("phrase", "transcript", "action"), [
+    ("derecha", "¡Derecha!", "go_right"), ("a la derecha", "A la derecha, por favor.", "go_right"),
+    ("para", "Para ya.", "stop"), ("up", "Up!", "up"), ("go left", "Go lift", "go_left"),
+    ("stop", "Stop the drone now", "stop"),
+])
+def test_commands_with_filler_or_misheard_words_still_act(name: str, phrase: str, transcript: str, action: str) -> None:
+    dictionary = EN if action in ("up", "go_left") or phrase == "stop" else ES
+    assert get_matcher(name).decide(_scored(phrase, transcript, -0.3, 1.0), [dictionary]).action == action
+
+
 def test_weak_scored_phrase_needs_an_agreeing_transcript() -> None:
     matcher = get_matcher("phonetic")
     assert matcher.decide(_scored("go right", "Go rite", -1.5, -1.0), [EN]).action == "go_right"
@@ -245,7 +270,8 @@ def test_confident_transcript_distance_is_data(tmp_path) -> None:
     strict = tmp_path / "strict.toml"
     strict.write_text(text.replace("confident_max_distance = ", "confident_max_distance = 0.3 #"), encoding="utf-8")
     lenient = tmp_path / "lenient.toml"
-    lenient.write_text(text.replace("confident_max_distance = ", "confident_max_distance = 0.9 #"), encoding="utf-8")
+    lenient.write_text(text.replace("confident_max_distance = ", "confident_max_distance = 0.9 #")
+                       .replace("word_max_distance = ", "word_max_distance = 0.9 #"), encoding="utf-8")
     heard = _scored("go down", "go home", -0.4, 1.0)
     assert get_matcher("phonetic", thresholds_path=strict).decide(heard, [EN]).action is None
     assert get_matcher("phonetic", thresholds_path=lenient).decide(heard, [EN]).action == "down"

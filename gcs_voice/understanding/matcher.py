@@ -13,6 +13,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from rapidfuzz.distance import Levenshtein
+
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
@@ -218,10 +220,36 @@ class Matcher:
         if confident and own > limits.get("confident_max_distance", 1.0):
             return (f"'{heard}' is not '{best.phrase.text}' (the recogniser's own transcript, "
                     f"distance {own:.2f} > {limits['confident_max_distance']:.2f})")
+        extra_word = self.extra_word(key, best.phrase.action, best.dictionary, limits.get("word_max_distance"))
+        if confident and extra_word:
+            return (f"'{heard}' says more than a command: '{extra_word}' is in no "
+                    f"{best.phrase.action} phrase (the recogniser's own transcript)")
         phrase_score = extra.get("phrase_score", float("inf"))
         if phrase_score < limits.get("min_phrase_score", -float("inf")) and own > limits.get("agree_max_distance", 1.0):
             return (f"unsure of '{best.phrase.text}' (score {phrase_score:.2f} < {limits['min_phrase_score']:.2f}) "
                     f"and the transcript '{heard}' does not sound like it")
+        return ""
+
+    def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
+        """Normalised distance between two single words (characters; the phonetic matcher: sounds)."""
+        return Levenshtein.normalized_distance(a, b)
+
+    def extra_word(self, heard: str, action: str, dictionary: Dictionary, max_distance: float | None) -> str:
+        """The first heard word that is near no word of ``action``'s phrases, or "".
+
+        A whole-text distance forgives extra words when the rest is close: "muestra la memoria" is 0.50
+        from "muévete a la derecha" and flew right. A command is said with the command's words (skip
+        words already removed), so a word that sounds like none of them, and is not a word of the
+        dictionary at all ("the" in "stop the drone" is), means other speech.
+        """
+        if max_distance is None or not heard:
+            return ""
+        words = {w for p in dictionary.phrases if p.action == action for w in p.key.split()}
+        vocabulary = {w for p in dictionary.phrases for w in p.key.split()}
+        for word in heard.split():
+            if word not in vocabulary and all(self.word_distance(word, w, dictionary) > max_distance
+                                              for w in words):
+                return word
         return ""
 
     def _evidence_reason(self, recognition: Recognition) -> str:
