@@ -44,6 +44,23 @@ def test_out_of_domain_speech_is_not_forced_into_a_command(grammar, tmp_path, sa
     assert result.extra["out_of_grammar"] == 1.0
 
 
+@pytest.mark.parametrize("wpm", [120, 150, 175])
+def test_stop_in_exact_digital_silence_is_heard(grammar, tmp_path, wpm):
+    """espeak-ng's own WAV (22.05 kHz, exact zeros around the word, no sox dither), as the PX4 flight
+    of issue 10 item 8 fed it: "stop" at 150 wpm went to the garbage branch and the vehicle never
+    stopped. The engine's seeded 1-LSB dither (engines.toml dither_lsb) fixes it."""
+    import subprocess
+
+    from gcs_voice.audio.sources import read_wav
+    from tests.asr_speech import need
+
+    need("espeak-ng")
+    wav = tmp_path / f"stop_{wpm}.wav"
+    subprocess.run(["espeak-ng", "-v", "en-us", "-s", str(wpm), "-w", str(wav), "stop"], check=True)
+    result = _recognise(grammar, read_wav(wav))
+    assert result.text == "stop" and result.extra["out_of_grammar"] == 0.0, result
+
+
 @pytest.mark.slow
 def test_real_recordings(grammar, real_speech_dir):
     """A few of the real speakers: most commands right, no non-command accepted as one of them."""
