@@ -177,8 +177,11 @@ class SimServer:
                     self._reset_parser(link)
                 for msg in msgs:
                     self._dispatch(msg, link)
-            if link.closed and isinstance(link, TcpClientLink):
-                self.links.remove(link)
+        self._drop_closed_links()
+
+    def _drop_closed_links(self) -> None:
+        """Forget TCP clients that left or were dropped (during a read *or* a send): a closed socket has fd -1."""
+        self.links = [link for link in self.links if not (link.closed and isinstance(link, TcpClientLink))]
 
     @staticmethod
     def _reset_parser(link: Link) -> None:
@@ -336,6 +339,7 @@ class SimServer:
                 continue
             lag_s = wall0 + (self.vehicle.time_s - sim0) / speedup - time.monotonic()
             if lag_s > 0:
+                self._drop_closed_links()      # a send during this tick may have closed a client
                 wait_readable([*self.links, *self.tcp_servers], lag_s)
             elif lag_s < -0.5:          # too slow for this speed-up: slip instead of bursting to catch up
                 wall0 -= lag_s + 0.5
