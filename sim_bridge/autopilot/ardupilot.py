@@ -14,7 +14,7 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.autopilot.base import FORCE_MAGIC, Autopilot, CommandContext
+from sim_bridge.autopilot.base import FORCE_MAGIC, INT32_MAX, INT32_MIN, Autopilot, CommandContext
 from sim_bridge.setpoints import FrameRules
 from sim_bridge.vehicle import Behaviour, VehicleEvent
 
@@ -151,6 +151,22 @@ class ArduCopter(Autopilot):
             return [mavlink.MAV_RESULT_ACCEPTED if self.params.set("FENCE_ENABLE", 1 if p[0] >= 0.5 else 0)
                     else mavlink.MAV_RESULT_FAILED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """GCS_MAVLINK::set_message_interval: param2 read as int32; 0 = default, -1 = off, 1 ms to 60 s.
+
+        One deliberate difference: ArduPilot would let -1 silence HEARTBEAT on that link; the sim refuses
+        (DENIED), so no client can make the vehicle stop announcing itself. Other rates apply as ArduPilot's.
+        """
+        us = int(max(INT32_MIN, min(INT32_MAX, interval_us)))
+        if us == 0:
+            return mavlink.MAV_RESULT_ACCEPTED, None
+        if us == -1:
+            if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+                return mavlink.MAV_RESULT_DENIED, None
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        interval_ms = 1 if us < 1000 else 60000 if us > 60_000_000 else us // 1000
+        return mavlink.MAV_RESULT_ACCEPTED, 1000.0 / interval_ms
 
     def on_set_mode(self, msg: Any) -> list[int]:
         if msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:

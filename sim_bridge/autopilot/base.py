@@ -22,6 +22,8 @@ __all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data", "FO
 
 #: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming past the checks (both autopilots).
 FORCE_MAGIC = 21196
+#: MESSAGE_INTERVAL.interval_us is an int32 on the wire; a float param beyond it is read as its nearest end.
+INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 
 
 class Outbox(Protocol):
@@ -107,6 +109,13 @@ class Autopilot:
         return []
 
     def on_setpoint(self, msg: Any) -> None:
+        raise NotImplementedError
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """SET_MESSAGE_INTERVAL as this firmware reads it, for the asking link only.
+
+        Returns (MAV_RESULT, rate in Hz): None = back to the default, 0 = off. ``interval_us`` is finite.
+        """
         raise NotImplementedError
 
     def position_target(self) -> tuple | None:

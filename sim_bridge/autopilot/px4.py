@@ -188,6 +188,16 @@ class PX4(Autopilot):
             return [mavlink.MAV_RESULT_ACCEPTED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
 
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """MavlinkReceiver::set_message_interval: HEARTBEAT is never changed; < 0 = off, 0 = default."""
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_FAILED, None
+        if interval_us < -1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        if interval_us > 1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 1e6 / interval_us
+        return mavlink.MAV_RESULT_ACCEPTED, None
+
     def on_set_mode(self, msg: Any) -> list[int]:
         main = (msg.custom_mode >> 16) & 0xFF
         sub = (msg.custom_mode >> 24) & 0xFF
