@@ -153,6 +153,8 @@ def test_mavproxy_downloads_params_arms_takes_off_and_lands(tmp_path: Path) -> N
         assert altitude_mm >= 1800
         console.send("mode land")
         console.expect(r"DISARMED", 20)
+        breaches = [line for line in console.log if "fence breach" in line.lower()]
+        assert not breaches, "SYS_STATUS says the fence is present but unhealthy"
     finally:
         mavproxy.terminate()
         try:

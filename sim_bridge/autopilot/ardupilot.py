@@ -152,6 +152,11 @@ class ArduCopter(Autopilot):
                     else mavlink.MAV_RESULT_FAILED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
 
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """AC_Fence: present and healthy (the capture: present=1, enabled=FENCE_ENABLE, health=1); the sim's
+        fence stops the vehicle before the boundary, so it is never breached."""
+        return True, self.vehicle.fence.enabled, True
+
     def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
         """GCS_MAVLINK::set_message_interval: param2 read as int32; 0 = default, -1 = off, 1 ms to 60 s.
 

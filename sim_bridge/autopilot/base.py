@@ -111,6 +111,10 @@ class Autopilot:
     def on_setpoint(self, msg: Any) -> None:
         raise NotImplementedError
 
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """SYS_STATUS geofence bit as (present, enabled, healthy); PX4's SIH capture reports none."""
+        return False, False, False
+
     def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
         """SET_MESSAGE_INTERVAL as this firmware reads it, for the asking link only.
 
