@@ -7,7 +7,6 @@ vehicle is ``python -m sim_bridge.cli`` on a free loopback port, the ground stat
 
 from __future__ import annotations
 
-import importlib.util
 import json
 import math
 import shutil
@@ -20,9 +19,10 @@ import pytest
 
 from gcs_voice.session.flight_log import Flight, read_flight
 from gcs_voice.session.session_log import read_session_log
+from tools import make_demo_audio
 
 REPO = Path(__file__).resolve().parent.parent
-DEMO_AUDIO = REPO / "gcs_voice" / "demo_audio"
+DEMO_AUDIO = REPO / "gcs_voice" / "session" / "demo_audio"
 #: simulated seconds per wall second in the e2e flights (the sim keeps up with this on 2 busy cores)
 SPEEDUP = 2.0
 
@@ -52,18 +52,11 @@ def require_speech_tools() -> None:
         pytest.skip("espeak-ng not installed")
 
 
-def _make_demo_audio():
-    spec = importlib.util.spec_from_file_location("make_demo_audio", REPO / "tools" / "make_demo_audio.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
 def speech(out_dir: Path, text: str, voice: str = "en-us", speed_wpm: int = 140) -> Path:
     """A WAV of ``text`` spoken by espeak-ng (16 kHz mono, 0.3 s silence each side)."""
     require_speech_tools()
     path = out_dir / (text.replace(" ", "_") + f"_{voice}.wav")
-    path.write_bytes(_make_demo_audio().synthesize(text, voice, speed_wpm))
+    path.write_bytes(make_demo_audio.synthesize(text, voice, speed_wpm))
     return path
 
 

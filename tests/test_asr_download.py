@@ -91,7 +91,7 @@ def test_download_then_found_by_language_and_used(server, tmp_path, monkeypatch,
     # and used by language, in a process of its own (Vosk keeps state across models in one process:
     # loading this copy here changed what test_asr_vosk's free-mode test heard afterwards)
     wav = say("위로", tmp_path / "wiro.wav", "ko")
-    run = subprocess.run([sys.executable, "-m", "gcs_voice.cli", "recognize", str(wav), "--engine", "vosk",
+    run = subprocess.run([sys.executable, "-m", "gcs_voice", "recognize", str(wav), "--engine", "vosk",
                           "--lang", "ko", "--json"], capture_output=True, text=True, timeout=120,
                          env={**os.environ, "VOSK_MODEL_PATH": str(dest)})
     assert run.returncode == 0, run.stderr

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-AUDIO_DIR = ROOT / "gcs_voice" / "demo_audio"
+AUDIO_DIR = ROOT / "gcs_voice" / "session" / "demo_audio"
 RATE_HZ = 16_000
 PAD_S = 0.3  # silence before and after, as a person leaves between commands
 

@@ -58,5 +58,3 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 130
 
 
-if __name__ == "__main__":  # python -m gcs_voice.cli
-    sys.exit(main())
