@@ -1,4 +1,4 @@
-"""Shared test fixtures: where ../shared is, and small helpers every test module may use."""
+"""Shared test fixtures: where ../shared is, the one way to start gcs-sim, and the one ``fly`` helper."""
 
 from __future__ import annotations
 
@@ -9,8 +9,12 @@ import subprocess
 import sys
 import threading
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import pytest
+
+if TYPE_CHECKING:
+    from sim_bridge.multicopter import Multicopter
 
 REPO = Path(__file__).resolve().parent.parent
 #: ../shared beside the checkout (models, real speech, real autopilot captures); override with GCS_VOICE_SHARED.
@@ -120,3 +124,12 @@ class SimProcess:
 
     def __exit__(self, *_exc: object) -> None:
         self.stop()
+
+
+def fly(vehicle: "Multicopter", seconds: float, step_s: float = 0.05) -> list:
+    """Step an in-process ``Multicopter`` for ``seconds`` (simulated); the states seen after each step."""
+    states = []
+    for _ in range(round(seconds / step_s)):
+        vehicle.step(step_s)
+        states.append(vehicle.state)
+    return states
