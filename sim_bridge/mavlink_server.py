@@ -86,7 +86,7 @@ class SimServer:
         # Message intervals are per link, as in both firmwares (SET_MESSAGE_INTERVAL changes the asking link
         # only); defaults are shared. The tlog records what a link with no overrides receives.
         self._default_hz: dict[int, float] = {}
-        self._schedules: dict[int, telemetry.Schedule] = {}      # id(link) -> its schedule
+        self._schedules: dict[int, tuple[Link, telemetry.Schedule]] = {}   # id(link) -> (link, its schedule)
         self.schedule = telemetry.Schedule()
         self._setup_streams()
         params.on_change(self._on_param_change)
@@ -97,16 +97,16 @@ class SimServer:
         self._schedule_for(link)
 
     def _schedule_for(self, link: Link) -> telemetry.Schedule:
-        schedule = self._schedules.get(id(link))
-        if schedule is None:
-            schedule = self._schedules[id(link)] = telemetry.Schedule()
+        entry = self._schedules.get(id(link))
+        if entry is None or entry[0] is not link:        # (an id can be reused once a link is gone)
+            entry = self._schedules[id(link)] = (link, telemetry.Schedule())
             for msg_id, rate_hz in self._default_hz.items():
-                schedule.set_default(msg_id, rate_hz)
-        return schedule
+                entry[1].set_default(msg_id, rate_hz)
+        return entry[1]
 
     def _set_default_rate(self, msg_id: int, rate_hz: float) -> None:
         self._default_hz[msg_id] = rate_hz
-        for schedule in (self.schedule, *self._schedules.values()):
+        for schedule in (self.schedule, *(entry[1] for entry in self._schedules.values())):
             schedule.set_default(msg_id, rate_hz)
 
     def add_tcp_server(self, server: TcpServer) -> None:
@@ -142,7 +142,8 @@ class SimServer:
         """ArduPilot's REQUEST_DATA_STREAM: sets the MAV1_* rate parameters (no ACK)."""
         if self.autopilot.name != "ardupilot":
             return
-        rate = float(msg.req_message_rate) if msg.start_stop else 0.0
+        # the MAVn_* rate parameters range 0-50 Hz in ArduPilot
+        rate = min(float(msg.req_message_rate), 50.0) if msg.start_stop else 0.0
         for param_name, group in self.autopilot.streams.items():
             if msg.req_stream_id in (0, group["stream"]):
                 self.params.set(param_name, rate)

@@ -60,14 +60,15 @@ def _heartbeat_gaps_ms(conn: mavutil.mavfile, beats: int) -> list[int]:
 @pytest.mark.slow
 @pytest.mark.parametrize("autopilot, refusal", [("ardupilot", M.MAV_RESULT_DENIED), ("px4", M.MAV_RESULT_FAILED)])
 def test_no_client_can_silence_the_heartbeat_and_intervals_are_per_link(autopilot: str, refusal: int) -> None:
-    """PX4 refuses any HEARTBEAT interval; ArduPilot's -1 would silence that link, the sim refuses it too.
+    """PX4 refuses any HEARTBEAT interval; ArduPilot would let -1 or 60 s hide that link, the sim refuses too.
 
     Other intervals change only the asking link, as both firmwares keep them per MAVLink channel.
     """
     with SimProcess(autopilot, "--tcp", "127.0.0.1:0", "--speedup", "4", udp=False) as sim:
         a, b = _tcp(sim), _tcp(sim)
         try:
-            assert _command(a, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_HEARTBEAT, -1) == refusal
+            for interval_us in (-1, 1e30, 60e6):
+                assert _command(a, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_HEARTBEAT, interval_us) == refusal
             assert _command(a, M.MAV_CMD_SET_MESSAGE_INTERVAL, M.MAVLINK_MSG_ID_ATTITUDE, -1) == M.MAV_RESULT_ACCEPTED
             for conn in (a, b):
                 gaps = _heartbeat_gaps_ms(conn, 4)

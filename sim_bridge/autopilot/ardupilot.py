@@ -160,15 +160,17 @@ class ArduCopter(Autopilot):
     def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
         """GCS_MAVLINK::set_message_interval: param2 read as int32; 0 = default, -1 = off, 1 ms to 60 s.
 
-        One deliberate difference: ArduPilot would let -1 silence HEARTBEAT on that link; the sim refuses
-        (DENIED), so no client can make the vehicle stop announcing itself. Other rates apply as ArduPilot's.
+        One deliberate difference: ArduPilot would let a client silence HEARTBEAT on that link (-1) or slow
+        it to once a minute; a UDP port is one link shared by every sender, so one stray client would hide the
+        vehicle from the others. The sim keeps HEARTBEAT at 1 Hz (DENIED), as PX4 does. Other rates apply as
+        ArduPilot's.
         """
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_DENIED, None
         us = int(max(INT32_MIN, min(INT32_MAX, interval_us)))
         if us == 0:
             return mavlink.MAV_RESULT_ACCEPTED, None
         if us == -1:
-            if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
-                return mavlink.MAV_RESULT_DENIED, None
             return mavlink.MAV_RESULT_ACCEPTED, 0.0
         interval_ms = 1 if us < 1000 else 60000 if us > 60_000_000 else us // 1000
         return mavlink.MAV_RESULT_ACCEPTED, 1000.0 / interval_ms
