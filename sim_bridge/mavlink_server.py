@@ -123,30 +123,16 @@ class SimServer:
     # ----------------------------------------------------------------- streams
     def _setup_streams(self) -> None:
         self._set_default_rate(mavlink.MAVLINK_MSG_ID_HEARTBEAT, 1.0)
-        ap = self.autopilot
-        if ap.name == "ardupilot":
-            for param_name, group in ap.streams.items():
-                for name in group["messages"]:
-                    self._set_default_rate(telemetry.message_id(name), self.params.get(param_name))
-        else:
-            for name, rate_hz in ap.streams.items():
-                self._set_default_rate(telemetry.message_id(name), float(rate_hz))
+        for name, rate_hz in self.autopilot.stream_rates().items():
+            self._set_default_rate(telemetry.message_id(name), rate_hz)
 
     def _on_param_change(self, name: str, value: float) -> None:
-        group = self.autopilot.streams.get(name) if self.autopilot.name == "ardupilot" else None
-        if isinstance(group, dict):
-            for msg_name in group["messages"]:
-                self._set_default_rate(telemetry.message_id(msg_name), value)
+        for msg_name in self.autopilot.messages_paced_by(name):
+            self._set_default_rate(telemetry.message_id(msg_name), value)
 
     def request_data_stream(self, msg: Any) -> None:
-        """ArduPilot's REQUEST_DATA_STREAM: sets the MAV1_* rate parameters (no ACK)."""
-        if self.autopilot.name != "ardupilot":
-            return
-        # the MAVn_* rate parameters range 0-50 Hz in ArduPilot
-        rate = min(float(msg.req_message_rate), 50.0) if msg.start_stop else 0.0
-        for param_name, group in self.autopilot.streams.items():
-            if msg.req_stream_id in (0, group["stream"]):
-                self.params.set(param_name, rate)
+        """REQUEST_DATA_STREAM (no ACK): what it does is the personality's."""
+        self.autopilot.on_request_data_stream(msg)
 
     # ----------------------------------------------------------------- output (the personality's Outbox)
     def send(self, msg: Any, link: Link | None = None) -> None:
@@ -160,7 +146,7 @@ class SimServer:
 
     def text(self, severity: int, text: str) -> None:
         data = text.encode("utf-8", "replace")
-        if len(data) <= STATUSTEXT_BYTES or self.autopilot.name == "ardupilot":
+        if len(data) <= STATUSTEXT_BYTES or not self.autopilot.chunks_long_texts:
             self.send(self._tlog_mav.statustext_encode(severity, data[:STATUSTEXT_BYTES]))
             return
         self._text_id = self._text_id % 65535 + 1          # PX4: long texts in chunks sharing an id
@@ -372,7 +358,7 @@ class SimServer:
         state = self.vehicle.state
         speed = float(math.sqrt(sum(float(v) ** 2 for v in state.vel_ned_m_s)))
         texts = [f"SIM Hit {contact.obstacle_name} at {speed:.2f} m/s" for contact in self.vehicle.multicopter.pop_events()]
-        if self.autopilot.name == "ardupilot" and VehicleEvent.TOUCHDOWN in events:
+        if self.autopilot.touchdown_is_a_hit and VehicleEvent.TOUCHDOWN in events:
             texts.append(f"SIM Hit ground at {self.vehicle.touchdown_speed_m_s:.2f} m/s")
         return texts
 

@@ -41,6 +41,7 @@ class ArduCopter(Autopilot):
         frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_OFFSET_NED,
                           mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_OFFSET_NED}),
         body_yaw_relative=True, any_bit_ignores_group=True, body_position_ignored=False)
+    touchdown_is_a_hit = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode = STABILIZE
@@ -151,6 +152,21 @@ class ArduCopter(Autopilot):
             return [mavlink.MAV_RESULT_ACCEPTED if self.params.set("FENCE_ENABLE", 1 if p[0] >= 0.5 else 0)
                     else mavlink.MAV_RESULT_FAILED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
+
+    def stream_rates(self) -> dict[str, float]:
+        """``[streams]`` maps each MAVn_* rate parameter to its stream id and messages."""
+        return {name: self.params.get(param) for param, group in self.streams.items() for name in group["messages"]}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        group = self.streams.get(param_name)
+        return list(group["messages"]) if isinstance(group, dict) else []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """Sets the MAVn_* rate parameters of the stream (0 = all); they range 0-50 Hz."""
+        rate = min(float(msg.req_message_rate), 50.0) if msg.start_stop else 0.0
+        for param_name, group in self.streams.items():
+            if msg.req_stream_id in (0, group["stream"]):
+                self.params.set(param_name, rate)
 
     def geofence_status(self) -> tuple[bool, bool, bool]:
         """AC_Fence: present and healthy (the capture: present=1, enabled=FENCE_ENABLE, health=1); the sim's

@@ -58,6 +58,10 @@ class Autopilot:
     name = "base"
     mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
     frame_rules: FrameRules
+    #: STATUSTEXT longer than 50 bytes: sent in chunks sharing an id (PX4), else cut at 50 (ArduPilot)
+    chunks_long_texts = False
+    #: a touchdown is reported as "SIM Hit ground at ..." (ArduPilot SITL does; PX4 SIH does not)
+    touchdown_is_a_hit = False
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
@@ -110,6 +114,17 @@ class Autopilot:
 
     def on_setpoint(self, msg: Any) -> None:
         raise NotImplementedError
+
+    def stream_rates(self) -> dict[str, float]:
+        """Default rate (Hz) of each streamed message, by name: ``[streams]`` of the personality data."""
+        return {name: float(rate_hz) for name, rate_hz in self.streams.items()}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        """Messages whose rate a parameter sets (ArduPilot's MAVn_* groups); none by default."""
+        return []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """REQUEST_DATA_STREAM; ignored by default (PX4: deprecated, does nothing)."""
 
     def geofence_status(self) -> tuple[bool, bool, bool]:
         """SYS_STATUS geofence bit as (present, enabled, healthy); PX4's SIH capture reports none."""

@@ -50,6 +50,7 @@ class PX4(Autopilot):
     mav_autopilot = mavlink.MAV_AUTOPILOT_PX4
     frame_rules = FrameRules(frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_NED}),
                              body_yaw_relative=False, any_bit_ignores_group=False, body_position_ignored=True)
+    chunks_long_texts = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode: tuple[int, int] = HOLD
