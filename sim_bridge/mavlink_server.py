@@ -87,7 +87,7 @@ class SimServer:
         # only); defaults are shared. The tlog records what a link with no overrides receives.
         self._default_hz: dict[int, float] = {}
         self._schedules: dict[int, tuple[Link, telemetry.Schedule]] = {}   # id(link) -> (link, its schedule)
-        self.schedule = telemetry.Schedule()
+        self._tlog_schedule = telemetry.Schedule()
         self._setup_streams()
         params.on_change(self._on_param_change)
 
@@ -106,7 +106,7 @@ class SimServer:
 
     def _set_default_rate(self, msg_id: int, rate_hz: float) -> None:
         self._default_hz[msg_id] = rate_hz
-        for schedule in (self.schedule, *(entry[1] for entry in self._schedules.values())):
+        for schedule in (self._tlog_schedule, *(entry[1] for entry in self._schedules.values())):
             schedule.set_default(msg_id, rate_hz)
 
     def add_tcp_server(self, server: TcpServer) -> None:
@@ -345,7 +345,7 @@ class SimServer:
                 if msg is not None and not link.closed:
                     link.send_bytes(msg.pack(link.mav))
         if self.tlog is not None:
-            for msg_id in self.schedule.due(now_s):
+            for msg_id in self._tlog_schedule.due(now_s):
                 msg = message(msg_id)
                 if msg is not None:
                     self.tlog.write(self._tlog_time_us(), msg.pack(self._tlog_mav))
@@ -371,12 +371,16 @@ class SimServer:
         """Run until ``should_stop()``; ``speedup`` None = as fast as possible, else paced to the wall clock."""
         wall0, sim0 = time.monotonic(), self.vehicle.time_s
         while not should_stop():
+            if speedup is not None:
+                lag_s = wall0 + (self.vehicle.time_s - sim0) / speedup - time.monotonic()
+                if lag_s > 0:
+                    # Ahead of the wall clock: wait, waking for input, which is read at once. The physics
+                    # waits for its time: stepping on every wake-up ran the clock ahead under a flood, then
+                    # froze the vehicle (every stream) until the wall clock caught up.
+                    self._drop_closed_links()      # a send during the last tick may have closed a client
+                    wait_readable([*self.links, *self.tcp_servers], lag_s)
+                    self.poll()
+                    continue
+                if lag_s < -0.5:        # too slow for this speed-up: slip instead of bursting to catch up
+                    wall0 -= lag_s + 0.5
             self.step()
-            if speedup is None:
-                continue
-            lag_s = wall0 + (self.vehicle.time_s - sim0) / speedup - time.monotonic()
-            if lag_s > 0:
-                self._drop_closed_links()      # a send during this tick may have closed a client
-                wait_readable([*self.links, *self.tcp_servers], lag_s)
-            elif lag_s < -0.5:          # too slow for this speed-up: slip instead of bursting to catch up
-                wall0 -= lag_s + 0.5

@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import threading
+import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -70,6 +71,7 @@ class SimProcess:
         self.ready = ""
         self.tcp_port: int | None = None
         self._stderr: list[str] = []
+        self.started_monotonic_s = 0.0
 
     @property
     def connection(self) -> str:
@@ -81,6 +83,7 @@ class SimProcess:
         return "".join(self._stderr)
 
     def start(self) -> "SimProcess":
+        self.started_monotonic_s = time.monotonic()
         self.proc = subprocess.Popen(self.cmd, cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                                      start_new_session=True)
         threading.Thread(target=lambda: self._stderr.extend(self.proc.stderr), daemon=True).start()

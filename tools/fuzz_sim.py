@@ -29,7 +29,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-__all__ = ["hostile_message", "fuzz_chunk", "fuzz", "FuzzCounts", "Health", "check_serving", "rss_kb",
+__all__ = ["hostile_message", "fuzz_chunk", "fuzz", "FuzzCounts", "Health", "Station", "check_serving", "rss_kb",
            "learn_sim_address"]
 
 REPO = Path(__file__).resolve().parent.parent
@@ -226,7 +226,7 @@ class Health:
         return self.heartbeat_1hz and self.udp_heartbeats >= 2 and self.took_off and self.mode_ok
 
 
-class _Station:
+class Station:
     """A minimal ground station on a fresh TCP link (its own message intervals, its own ACKs)."""
 
     def __init__(self, port: int) -> None:
@@ -296,7 +296,7 @@ class _Station:
 def check_serving(tcp_port: int, autopilot: str, udp_sock: socket.socket | None = None) -> Health:
     """Connect afresh and check: HEARTBEAT at 1 Hz (simulated), heard on UDP too, and a normal take-off."""
     health = Health()
-    station = _Station(tcp_port)
+    station = Station(tcp_port)
     try:
         accepted = M.MAV_RESULT_ACCEPTED
         # this link's own clock: GLOBAL_POSITION_INT at 10 Hz, whatever the fuzz did to the shared defaults
@@ -343,12 +343,12 @@ def _count_udp_heartbeats(udp_sock: socket.socket, wanted: int, seconds: float) 
     return beats
 
 
-def _climbed(station: _Station, timeout_s: float = 30.0) -> bool:
+def _climbed(station: Station, timeout_s: float = 30.0) -> bool:
     return station.wait("GLOBAL_POSITION_INT", timeout_s, lambda m: m.relative_alt >= (TAKEOFF_M - 0.3) * 1000) \
         is not None
 
 
-def _ardupilot_takeoff(station: _Station, health: Health) -> None:
+def _ardupilot_takeoff(station: Station, health: Health) -> None:
     accepted = [M.MAV_RESULT_ACCEPTED]
     steps = [("GUIDED", station.command(M.MAV_CMD_DO_SET_MODE, 1, 4)),
              ("arm", station.command(M.MAV_CMD_COMPONENT_ARM_DISARM, 1)),
@@ -362,7 +362,7 @@ def _ardupilot_takeoff(station: _Station, health: Health) -> None:
     health.height_m = station.rel_alt_m
 
 
-def _px4_takeoff(station: _Station, health: Health) -> None:
+def _px4_takeoff(station: Station, health: Health) -> None:
     accepted = M.MAV_RESULT_ACCEPTED
     station.wait("GLOBAL_POSITION_INT", 5.0)
     home_amsl_m = station.alt_amsl_m - station.rel_alt_m
