@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="also listen for TCP clients (several at once), like SITL's port 5760; HOST defaults to "
                         "127.0.0.1, port 0 picks a free one (printed in the ready line)")
     p.add_argument("--room", default="living_room", metavar="FILE|NAME",
-                   help="room to fly in: a name from sim_bridge/rooms (living_room, open_field) or a JSON file")
+                   help="room to fly in: a name from rooms/ (living_room, open_field) or a JSON file")
     p.add_argument("--autopilot", choices=AUTOPILOTS, default="ardupilot",
                    help="personality on the wire: ArduCopter (modes, GUIDED, FAILED refusals) or PX4 (OFFBOARD rules, "
                         "double DO_SET_MODE ACK, offboard-loss failsafe)")

@@ -45,9 +45,13 @@ def _heartbeat(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _sys_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    present = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.prearm_bit_present else 0)
-    health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0)
-    return mav.sys_status_encode(present, present, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
+    fence_present, fence_enabled, fence_healthy = ap.geofence_status()
+    fence = M.MAV_SYS_STATUS_GEOFENCE
+    prearm = M.MAV_SYS_STATUS_PREARM_CHECK if ap.prearm_bit_present else 0
+    present = SENSORS | prearm | (fence if fence_present else 0)
+    enabled = SENSORS | prearm | (fence if fence_enabled else 0)
+    health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0) | (fence if fence_healthy else 0)
+    return mav.sys_status_encode(present, enabled, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
                                  0, 0, 0, 0, 0, 0)
 
 

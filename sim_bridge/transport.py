@@ -11,6 +11,7 @@ import errno
 import select
 import socket
 import struct
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO, Callable
@@ -227,10 +228,11 @@ def wait_readable(fds: list, timeout_s: float) -> None:
     """Sleep until one of ``fds`` is readable or ``timeout_s`` passes (the real-time pacing wait)."""
     if timeout_s <= 0:
         return
-    if fds:
-        select.select(fds, [], [], timeout_s)
-    else:
-        select.select([], [], [], timeout_s)
+    open_fds = [fd for fd in fds if not getattr(fd, "closed", False) and fd.fileno() >= 0]
+    try:
+        select.select(open_fds, [], [], timeout_s)
+    except (OSError, ValueError):     # a socket closed under us: just pace, the next poll forgets it
+        time.sleep(timeout_s)
 
 
 class TlogWriter:

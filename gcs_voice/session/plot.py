@@ -2,7 +2,8 @@
 
 Commands come from the session log (``.jsonl`` written beside the tlog by ``gcs-voice``) when there is
 one, otherwise from the setpoints found in the tlog itself, so a tlog from any ground station plots.
-Rooms are the simulator's JSON data files, read as data (the bridge never imports ``sim_bridge``).
+Rooms are JSON data files read by ``rooms``, the one room reader the simulator uses too (the bridge never
+imports ``sim_bridge``).
 """
 
 from __future__ import annotations
@@ -11,11 +12,12 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import rooms
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.collisions import parse_hit
 from gcs_voice.session.flight_log import Flight, read_flight, setpoint_action
 
-__all__ = ["Room", "Box", "CommandMark", "load_room", "rooms_dir", "commands_from_session_log",
+__all__ = ["Room", "Box", "CommandMark", "load_room", "commands_from_session_log",
            "commands_from_setpoints", "collisions_for_plot", "plot_flight", "draw_flight"]
 
 #: nose arrows along the top-view track: one per this fraction of the drawn area's size travelled
@@ -66,48 +68,16 @@ class CommandMark:
     label: str
 
 
-def rooms_dir() -> Path:
-    """The simulator's room files, found beside this package (source tree or installed wheel)."""
-    return Path(__file__).resolve().parents[2] / "sim_bridge" / "rooms"
-
-
-def _box(raw: object, where: str, default_name: str) -> Box:
-    if not isinstance(raw, dict):
-        raise PlotError(f"{where}: a box must be a JSON object")
-    ext = raw.get("extents")
-    if ext is None and {"min", "max"} <= set(raw):
-        ext = [raw["min"][0], raw["max"][0], raw["min"][1], raw["max"][1]]
-    if not isinstance(ext, list) or len(ext) < 4 or not all(isinstance(v, (int, float)) for v in ext[:4]):
-        raise PlotError(f"{where}: box needs 'extents' [north_min, north_max, east_min, east_max, ...] in metres")
-    return Box(str(raw.get("name", default_name)), float(ext[0]), float(ext[1]), float(ext[2]), float(ext[3]))
-
-
 def load_room(name_or_path: str) -> Room:
-    """A room by bundled name (``sim_bridge/rooms/NAME.json``) or by file path; bad files raise PlotError."""
-    path = Path(name_or_path)
-    if not path.is_file():
-        candidate = rooms_dir() / f"{name_or_path}.json"
-        if not candidate.is_file():
-            known = ", ".join(sorted(p.stem for p in rooms_dir().glob("*.json"))) or "none found"
-            raise PlotError(f"no room {name_or_path!r}: not a file, not a bundled room (bundled: {known})")
-        path = candidate
+    """A room by bundled name or file path, read by the one room reader (``rooms``); bad files raise PlotError."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PlotError(f"{path}: not a readable JSON room: {exc}") from None
-    if not isinstance(data, dict):
-        raise PlotError(f"{path}: a room must be a JSON object")
-    bounds = _box(data["bounds"], f"{path} bounds", "walls") if "bounds" in data else None
-    raw_boxes = data.get("blocks", data.get("boxes", data.get("obstacles", [])))
-    if not isinstance(raw_boxes, list):
-        raise PlotError(f"{path}: 'blocks' must be a list of boxes")
-    boxes = tuple(_box(b, f"{path} block {i}", f"box {i}") for i, b in enumerate(raw_boxes))
-    start = data.get("start", {}).get("pos_m", [0.0, 0.0]) if isinstance(data.get("start"), dict) else [0.0, 0.0]
-    try:
-        start_north_m, start_east_m = float(start[0]), float(start[1])
-    except (TypeError, ValueError, IndexError):
-        raise PlotError(f"{path}: 'start.pos_m' must be [north_m, east_m]") from None
-    return Room(str(data.get("name", path.stem)), bounds, boxes, start_north_m, start_east_m)
+        room = rooms.load_room(name_or_path)
+    except rooms.RoomError as exc:
+        raise PlotError(str(exc)) from None
+    (n_min, e_min, _), (n_max, e_max, _) = room.bounds_min_m, room.bounds_max_m
+    bounds = Box("walls" if room.walls else "bounds", n_min, n_max, e_min, e_max)
+    boxes = tuple(Box(b.name, b.min_m[0], b.max_m[0], b.min_m[1], b.max_m[1]) for b in room.blocks)
+    return Room(room.name, bounds, boxes, room.start_xy_m[0], room.start_xy_m[1])
 
 
 def commands_from_session_log(path: str | Path) -> list[CommandMark]:

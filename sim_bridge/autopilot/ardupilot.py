@@ -14,7 +14,7 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.autopilot.base import FORCE_MAGIC, Autopilot, CommandContext
+from sim_bridge.autopilot.base import FORCE_MAGIC, INT32_MAX, INT32_MIN, Autopilot, CommandContext
 from sim_bridge.setpoints import FrameRules
 from sim_bridge.vehicle import Behaviour, VehicleEvent
 
@@ -43,6 +43,7 @@ class ArduCopter(Autopilot):
         frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_OFFSET_NED,
                           mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_OFFSET_NED}),
         body_yaw_relative=True, any_bit_ignores_group=True, body_position_ignored=False)
+    touchdown_is_a_hit = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode = STABILIZE
@@ -172,6 +173,44 @@ class ArduCopter(Autopilot):
             return [mavlink.MAV_RESULT_ACCEPTED if self.params.set("FENCE_ENABLE", 1 if p[0] >= 0.5 else 0)
                     else mavlink.MAV_RESULT_FAILED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
+
+    def stream_rates(self) -> dict[str, float]:
+        """``[streams]`` maps each MAVn_* rate parameter to its stream id and messages."""
+        return {name: self.params.get(param) for param, group in self.streams.items() for name in group["messages"]}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        group = self.streams.get(param_name)
+        return list(group["messages"]) if isinstance(group, dict) else []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """Sets the MAVn_* rate parameters of the stream (0 = all); they range 0-50 Hz."""
+        rate = min(float(msg.req_message_rate), 50.0) if msg.start_stop else 0.0
+        for param_name, group in self.streams.items():
+            if msg.req_stream_id in (0, group["stream"]):
+                self.params.set(param_name, rate)
+
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """AC_Fence: present and healthy (the capture: present=1, enabled=FENCE_ENABLE, health=1); the sim's
+        fence stops the vehicle before the boundary, so it is never breached."""
+        return True, self.vehicle.fence.enabled, True
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """GCS_MAVLINK::set_message_interval: param2 read as int32; 0 = default, -1 = off, 1 ms to 60 s.
+
+        One deliberate difference: ArduPilot would let a client silence HEARTBEAT on that link (-1) or slow
+        it to once a minute; a UDP port is one link shared by every sender, so one stray client would hide the
+        vehicle from the others. The sim keeps HEARTBEAT at 1 Hz (DENIED), as PX4 does. Other rates apply as
+        ArduPilot's.
+        """
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_DENIED, None
+        us = int(max(INT32_MIN, min(INT32_MAX, interval_us)))
+        if us == 0:
+            return mavlink.MAV_RESULT_ACCEPTED, None
+        if us == -1:
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        interval_ms = 1 if us < 1000 else 60000 if us > 60_000_000 else us // 1000
+        return mavlink.MAV_RESULT_ACCEPTED, 1000.0 / interval_ms
 
     def on_set_mode(self, msg: Any) -> list[int]:
         if msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:

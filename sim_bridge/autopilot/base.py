@@ -23,6 +23,8 @@ __all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data", "FO
 
 #: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming past the checks (both autopilots).
 FORCE_MAGIC = 21196
+#: MESSAGE_INTERVAL.interval_us is an int32 on the wire; a float param beyond it is read as its nearest end.
+INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 
 
 class Outbox(Protocol):
@@ -59,6 +61,10 @@ class Autopilot:
     frame_rules: FrameRules
     #: SYS_STATUS lists MAV_SYS_STATUS_PREARM_CHECK as present/enabled (ArduPilot); PX4 sets it only in health
     prearm_bit_present = True
+    #: STATUSTEXT longer than 50 bytes: sent in chunks sharing an id (PX4), else cut at 50 (ArduPilot)
+    chunks_long_texts = False
+    #: a touchdown is reported as "SIM Hit ground at ..." (ArduPilot SITL does; PX4 SIH does not)
+    touchdown_is_a_hit = False
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
@@ -130,6 +136,28 @@ class Autopilot:
         return []
 
     def on_setpoint(self, msg: Any) -> None:
+        raise NotImplementedError
+
+    def stream_rates(self) -> dict[str, float]:
+        """Default rate (Hz) of each streamed message, by name: ``[streams]`` of the personality data."""
+        return {name: float(rate_hz) for name, rate_hz in self.streams.items()}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        """Messages whose rate a parameter sets (ArduPilot's MAVn_* groups); none by default."""
+        return []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """REQUEST_DATA_STREAM; ignored by default (PX4: deprecated, does nothing)."""
+
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """SYS_STATUS geofence bit as (present, enabled, healthy); PX4's SIH capture reports none."""
+        return False, False, False
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """SET_MESSAGE_INTERVAL as this firmware reads it, for the asking link only.
+
+        Returns (MAV_RESULT, rate in Hz): None = back to the default, 0 = off. ``interval_us`` is finite.
+        """
         raise NotImplementedError
 
     def position_target(self) -> tuple | None:

@@ -51,6 +51,7 @@ class PX4(Autopilot):
     frame_rules = FrameRules(frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_NED}),
                              body_yaw_relative=False, any_bit_ignores_group=False, body_position_ignored=True)
     prearm_bit_present = False   # PX4.md: only onboard_control_sensors_health gets PREARM_CHECK when armable
+    chunks_long_texts = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode: tuple[int, int] = HOLD
@@ -188,6 +189,16 @@ class PX4(Autopilot):
             self._start_rtl()
             return [mavlink.MAV_RESULT_ACCEPTED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """MavlinkReceiver::set_message_interval: HEARTBEAT is never changed; < 0 = off, 0 = default."""
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_FAILED, None
+        if interval_us < -1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        if interval_us > 1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 1e6 / interval_us
+        return mavlink.MAV_RESULT_ACCEPTED, None
 
     def on_set_mode(self, msg: Any) -> list[int]:
         main = (msg.custom_mode >> 16) & 0xFF
