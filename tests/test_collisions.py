@@ -100,7 +100,7 @@ def test_a_session_that_hits_a_wall_exits_1_and_says_so(tmp_path: Path) -> None:
 def test_a_demo_that_collides_says_so_and_exits_non_zero(tmp_path: Path) -> None:
     """The shipped English sequence, flown in a room with a tall cabinet 0.6 m in front of the start."""
     require_parts("sim_bridge.cli", "gcs_voice.asr.registry")
-    room = json.loads((REPO / "sim_bridge" / "rooms" / "living_room.json").read_text())
+    room = json.loads((REPO / "rooms" / "living_room.json").read_text())
     room["blocks"] = [{"name": "tall cabinet", "extents": [3.6, 4.2, 1.0, 4.2, 0.0, 2.6], "color": [0.3, 0.3, 0.3]}]
     (tmp_path / "cabinet.json").write_text(json.dumps(room))
     proc = subprocess.run([sys.executable, "-m", "gcs_voice", "demo", "--lang", "en", "--engine", "sphinx",
