@@ -35,7 +35,7 @@ def _parser() -> argparse.ArgumentParser:
                    help="also listen for TCP clients (several at once), like SITL's port 5760; HOST defaults to "
                         "127.0.0.1, port 0 picks a free one (printed in the ready line)")
     p.add_argument("--room", default="living_room", metavar="FILE|NAME",
-                   help="room to fly in: a name from sim_bridge/rooms (living_room, open_field) or a JSON file")
+                   help="room to fly in: a name from rooms/ (living_room, open_field) or a JSON file")
     p.add_argument("--autopilot", choices=AUTOPILOTS, default="ardupilot",
                    help="personality on the wire: ArduCopter (modes, GUIDED, FAILED refusals) or PX4 (OFFBOARD rules, "
                         "double DO_SET_MODE ACK, offboard-loss failsafe)")
@@ -44,7 +44,20 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--home", metavar="LAT,LON,ALT", help="home position in degrees and metres AMSL (default: the room's)")
     p.add_argument("--tlog", metavar="FILE", type=Path,
                    help="write everything sent and received to this .tlog (mavlogdump.py reads it)")
+    p.add_argument("--cold-start", action="store_true",
+                   help="boot like the real autopilot (ArduCopter: BOOT 2 s, a mode set then is reset to STABILIZE, "
+                        "arming refused with its 'Arm: ...' texts until the EKF has a position after ~41 s; PX4: "
+                        "pre-flight checks fail for ~4 s); default: ready to arm after 2.5 s")
+    p.add_argument("--boot-scale", type=float, metavar="S",
+                   help="with --cold-start: multiply the boot's times by S (0.1: ArduCopter has a position after 4 s)")
     p.add_argument("--duration", type=float, metavar="S", help="stop after S simulated seconds (default: run until Ctrl-C)")
+    p.add_argument("--signing-key", metavar="PASSPHRASE|@FILE",
+                   help="MAVLink 2 signing with SHA-256(PASSPHRASE) as the key (MAVProxy's 'signing setup'): sign "
+                        "everything sent and obey only messages signed with it (arm, mode, setpoints, params, "
+                        "missions); @FILE reads the passphrase from the file's first line, out of sight of 'ps'")
+    p.add_argument("--allow", action="append", metavar="HOST|NET", default=[],
+                   help="take UDP datagrams and TCP clients only from these addresses or networks (repeatable, e.g. "
+                        "127.0.0.1 or 192.168.1.0/24); default: from anyone who can reach this machine")
     return p
 
 
@@ -74,7 +87,9 @@ def _parse_speedup(text: str) -> float | None:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = _parser().parse_args(argv)
+    from sim_bridge.access import AccessError
     from sim_bridge.params import ParamsError
+    from sim_bridge.signing import SigningKeyError, key_from_flag
     from sim_bridge.transport import TransportError
     from sim_bridge.world import RoomError
 
@@ -84,8 +99,13 @@ def main(argv: Sequence[str] | None = None) -> int:
         if args.duration is not None and not (math.isfinite(args.duration) and args.duration > 0):
             raise SimUsageError("--duration: a positive number of seconds")
         outs = args.out or ([] if args.tcp else [DEFAULT_OUT])
-        server = build_sim(args.autopilot, args.room, home, outs, args.tcp, args.tlog)
-    except (SimUsageError, TransportError, RoomError, ParamsError) as exc:
+        if args.boot_scale is not None and not args.cold_start:
+            raise SimUsageError("--boot-scale needs --cold-start")
+        scale = (1.0 if args.boot_scale is None else args.boot_scale) if args.cold_start else None
+        key = None if args.signing_key is None else key_from_flag(args.signing_key)
+        server = build_sim(args.autopilot, args.room, home, outs, args.tcp, args.tlog, signing_key=key,
+                           allow=args.allow, cold_start_scale=scale)
+    except (SimUsageError, TransportError, RoomError, ParamsError, SigningKeyError, AccessError) as exc:
         print(f"gcs-sim: error: {exc}", file=sys.stderr)
         return 2
     stop = {"now": False}
@@ -109,9 +129,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     s = server.stats
     print(f"gcs-sim: stopped after {server.vehicle.time_s:.1f} s simulated; sent {s.sent}, received {s.received}; "
           f"{server.summary_text()}{'; tlog ' + str(args.tlog) + f' ({server.tlog.records} records)' if args.tlog else ''}"
-          f"{f'; {s.handler_errors} handler errors, last {server.last_handler_error}' if s.handler_errors else ''}",
-          flush=True)
+          f"{f'; {s.handler_errors} handler errors, last {server.last_handler_error}' if s.handler_errors else ''}"
+          f"{_access_summary(server)}", flush=True)
     return 0
+
+
+def _access_summary(server) -> str:
+    """``; signing on: 40 signed ok, refused 3 unsigned; --allow refused 2`` (empty when neither was used)."""
+    parts = [server.signing.summary()]
+    peer_filter = getattr(server, "peer_filter", None)
+    if peer_filter is not None:
+        parts.append(f"--allow {peer_filter} refused {peer_filter.refused}")
+    return "".join(f"; {part}" for part in parts if part)
 
 
 if __name__ == "__main__":

@@ -57,7 +57,9 @@ class ControlGains:
     velocity_ki_horizontal_per_s2: float
     velocity_kp_vertical_per_s: float
     velocity_ki_vertical_per_s2: float
-    velocity_integral_limit_m_s2: float
+    velocity_integral_limit_vertical_m_s2: float
+    velocity_integral_limit_horizontal_m_s2: float
+    velocity_integrate_below_error_m_s: float
     velocity_accel_limit_horizontal_m_s2: float
     velocity_accel_limit_vertical_m_s2: float
     velocity_feedforward_horizontal: float
@@ -263,13 +265,27 @@ class CascadedController:
         tilt_saturated = a_norm > a_max
         if tilt_saturated:
             a_fwd, a_right = a_fwd * a_max / a_norm, a_right * a_max / a_norm
-        # integrate only what the vehicle can act on (conditional anti-windup), and within a clamp
-        for axis in (2,) if tilt_saturated else (0, 1, 2):
-            self._i_vel[axis] = _clamp(self._i_vel[axis] + ki[axis] * errors[axis] * dt_s,
-                                       g.velocity_integral_limit_m_s2)
+        self._integrate(errors, ki, dt_s, tilt_saturated)
         pitch_t = -math.atan2(a_fwd, lift_m_s2)
         roll_t = math.atan2(a_right * math.cos(pitch_t), lift_m_s2)
         return self._attitude(s, dt_s, roll_t, pitch_t, lift_m_s2)
+
+    def _integrate(self, errors: tuple[float, float, float], ki: tuple[float, float, float], dt_s: float,
+                   tilt_saturated: bool) -> None:
+        """Velocity integrators with anti-windup, as real controllers limit theirs.
+
+        Each is clamped (IMAX). Horizontally they do not grow while the tilt is saturated (the vehicle cannot
+        act on more) nor while the error is large (it is not tracking: pushed against a wall, held by a
+        table): then they may only shrink. So 40 s against a wall leaves nothing to unwind.
+        """
+        g = self.gains
+        vertical = self._i_vel[2] + ki[2] * errors[2] * dt_s
+        self._i_vel[2] = _clamp(vertical, g.velocity_integral_limit_vertical_m_s2)
+        tracking = math.hypot(errors[0], errors[1]) < g.velocity_integrate_below_error_m_s
+        for axis in (0, 1):
+            grown = _clamp(self._i_vel[axis] + ki[axis] * errors[axis] * dt_s, g.velocity_integral_limit_horizontal_m_s2)
+            if (tracking and not tilt_saturated) or abs(grown) < abs(self._i_vel[axis]):
+                self._i_vel[axis] = grown
 
     def _spool_down(self, s: FdmSample, dt_s: float) -> bool:
         """Lower the touchdown collective; tilted (rocking on a foot), take back enough to level first.

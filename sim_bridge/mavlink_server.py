@@ -17,9 +17,10 @@ from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim_bridge import telemetry
 from sim_bridge.autopilot import personality_class
-from sim_bridge.autopilot.base import Autopilot, CommandContext
+from sim_bridge.autopilot.base import INT32_MAX, Autopilot, CommandContext
 from sim_bridge.params import ParamStore
 from sim_bridge.protocols import ParamProtocol, mission_reply
+from sim_bridge.signing import SimSigning
 from sim_bridge.transport import Link, TcpClientLink, TcpServer, TlogWriter, UdpOutLink, wait_readable
 from sim_bridge.vehicle import Vehicle, VehicleEvent
 
@@ -32,6 +33,13 @@ STATS_PERIOD_S = 10.0
 #: Statustext bodies are 50 bytes on the wire.
 STATUSTEXT_BYTES = 50
 HEADER_LEN_V1 = 6
+
+
+def interval_us(rate_hz: float) -> int:
+    """MESSAGE_INTERVAL.interval_us for a rate: -1 = off, else the interval, within int32 (the field's type)."""
+    if rate_hz <= 0:
+        return -1
+    return int(min(INT32_MAX, max(1, round(1e6 / rate_hz))))
 
 
 @dataclass
@@ -76,13 +84,33 @@ class SimServer:
         self.last_handler_error = ""
         self.autopilot: Autopilot = personality_class(autopilot)(vehicle, params, self, home, self.epoch_unix_s)
         self.param_protocol = ParamProtocol(params, self)
-        self.schedule = telemetry.Schedule()
+        self.signing = SimSigning(autopilot)      # no key until --signing-key or a SETUP_SIGNING
+        # Message intervals are per link, as in both firmwares (SET_MESSAGE_INTERVAL changes the asking link
+        # only); defaults are shared. The tlog records what a link with no overrides receives.
+        self._default_hz: dict[int, float] = {}
+        self._schedules: dict[int, tuple[Link, telemetry.Schedule]] = {}   # id(link) -> (link, its schedule)
+        self._tlog_schedule = telemetry.Schedule()
         self._setup_streams()
         params.on_change(self._on_param_change)
 
     # ----------------------------------------------------------------- links
     def add_link(self, link: Link) -> None:
+        self.signing.attach(link)
         self.links.append(link)
+        self._schedule_for(link)
+
+    def _schedule_for(self, link: Link) -> telemetry.Schedule:
+        entry = self._schedules.get(id(link))
+        if entry is None or entry[0] is not link:        # (an id can be reused once a link is gone)
+            entry = self._schedules[id(link)] = (link, telemetry.Schedule())
+            for msg_id, rate_hz in self._default_hz.items():
+                entry[1].set_default(msg_id, rate_hz)
+        return entry[1]
+
+    def _set_default_rate(self, msg_id: int, rate_hz: float) -> None:
+        self._default_hz[msg_id] = rate_hz
+        for schedule in (self._tlog_schedule, *(entry[1] for entry in self._schedules.values())):
+            schedule.set_default(msg_id, rate_hz)
 
     def add_tcp_server(self, server: TcpServer) -> None:
         self.tcp_servers.append(server)
@@ -97,30 +125,17 @@ class SimServer:
 
     # ----------------------------------------------------------------- streams
     def _setup_streams(self) -> None:
-        self.schedule.set_default(mavlink.MAVLINK_MSG_ID_HEARTBEAT, 1.0)
-        ap = self.autopilot
-        if ap.name == "ardupilot":
-            for param_name, group in ap.streams.items():
-                for name in group["messages"]:
-                    self.schedule.set_default(telemetry.message_id(name), self.params.get(param_name))
-        else:
-            for name, rate_hz in ap.streams.items():
-                self.schedule.set_default(telemetry.message_id(name), float(rate_hz))
+        self._set_default_rate(mavlink.MAVLINK_MSG_ID_HEARTBEAT, 1.0)
+        for name, rate_hz in self.autopilot.stream_rates().items():
+            self._set_default_rate(telemetry.message_id(name), rate_hz)
 
     def _on_param_change(self, name: str, value: float) -> None:
-        group = self.autopilot.streams.get(name) if self.autopilot.name == "ardupilot" else None
-        if isinstance(group, dict):
-            for msg_name in group["messages"]:
-                self.schedule.set_default(telemetry.message_id(msg_name), value)
+        for msg_name in self.autopilot.messages_paced_by(name):
+            self._set_default_rate(telemetry.message_id(msg_name), value)
 
     def request_data_stream(self, msg: Any) -> None:
-        """ArduPilot's REQUEST_DATA_STREAM: sets the MAV1_* rate parameters (no ACK)."""
-        if self.autopilot.name != "ardupilot":
-            return
-        rate = float(msg.req_message_rate) if msg.start_stop else 0.0
-        for param_name, group in self.autopilot.streams.items():
-            if msg.req_stream_id in (0, group["stream"]):
-                self.params.set(param_name, rate)
+        """REQUEST_DATA_STREAM (no ACK): what it does is the personality's."""
+        self.autopilot.on_request_data_stream(msg)
 
     # ----------------------------------------------------------------- output (the personality's Outbox)
     def send(self, msg: Any, link: Link | None = None) -> None:
@@ -134,7 +149,7 @@ class SimServer:
 
     def text(self, severity: int, text: str) -> None:
         data = text.encode("utf-8", "replace")
-        if len(data) <= STATUSTEXT_BYTES or self.autopilot.name == "ardupilot":
+        if len(data) <= STATUSTEXT_BYTES or not self.autopilot.chunks_long_texts:
             self.send(self._tlog_mav.statustext_encode(severity, data[:STATUSTEXT_BYTES]))
             return
         self._text_id = self._text_id % 65535 + 1          # PX4: long texts in chunks sharing an id
@@ -161,7 +176,7 @@ class SimServer:
     def poll(self) -> None:
         for server in self.tcp_servers:
             for client in server.accept():
-                self.links.append(client)
+                self.add_link(client)
         for link in list(self.links):
             for chunk in link.read():
                 link.stats.bytes_in += len(chunk)
@@ -177,8 +192,15 @@ class SimServer:
                     self._reset_parser(link)
                 for msg in msgs:
                     self._dispatch(msg, link)
-            if link.closed and isinstance(link, TcpClientLink):
-                self.links.remove(link)
+        self._drop_closed_links()
+
+    def _drop_closed_links(self) -> None:
+        """Forget TCP clients that left or were dropped (during a read *or* a send): a closed socket has fd -1."""
+        gone = [link for link in self.links if link.closed and isinstance(link, TcpClientLink)]
+        if gone:
+            self.links = [link for link in self.links if not any(link is g for g in gone)]
+            for link in gone:
+                self._schedules.pop(id(link), None)
 
     @staticmethod
     def _reset_parser(link: Link) -> None:
@@ -201,6 +223,8 @@ class SimServer:
         link.stats.packets_in += 1
         if self.tlog is not None:
             self.tlog.write(self._tlog_time_us(), bytes(msg.get_msgbuf()))
+        if not self.signing.accept(msg):       # with a key: unsigned, wrongly signed or replayed
+            return
         target = getattr(msg, "target_system", 0)
         component = getattr(msg, "target_component", 0)
         if target not in (0, SYSTEM_ID) or component not in (0, COMPONENT_ID) or msg.get_srcSystem() == SYSTEM_ID:
@@ -242,15 +266,16 @@ class SimServer:
         if ctx.command == mavlink.MAV_CMD_SET_MESSAGE_INTERVAL:
             if not (math.isfinite(p[0]) and math.isfinite(p[1])) or int(p[0]) not in telemetry.BUILDERS:
                 return [mavlink.MAV_RESULT_FAILED]
-            interval_us = p[1]
-            rate = None if interval_us == 0 else (0.0 if interval_us < 0 else min(1e6 / interval_us, 1.0 / self.dt_s))
-            self.schedule.set_override(int(p[0]), rate)
-            return [mavlink.MAV_RESULT_ACCEPTED]
+            result, rate = self.autopilot.message_interval(int(p[0]), p[1])
+            if result == mavlink.MAV_RESULT_ACCEPTED:
+                # never faster than the physics loop (ArduPilot caps at 80 % of its loop rate likewise)
+                self._schedule_for(ctx.link).set_override(int(p[0]), rate if not rate else min(rate, 1.0 / self.dt_s))
+            return [result]
         if ctx.command == mavlink.MAV_CMD_GET_MESSAGE_INTERVAL:
             if not math.isfinite(p[0]) or int(p[0]) not in telemetry.BUILDERS:
                 return [mavlink.MAV_RESULT_FAILED]
-            rate = self.schedule.rate_hz(int(p[0]))
-            ctx.replies = [self._tlog_mav.message_interval_encode(int(p[0]), int(1e6 / rate) if rate > 0 else -1)]
+            rate = self._schedule_for(ctx.link).rate_hz(int(p[0]))
+            ctx.replies = [self._tlog_mav.message_interval_encode(int(p[0]), interval_us(rate))]
             return [mavlink.MAV_RESULT_ACCEPTED]
         return None
 
@@ -274,6 +299,12 @@ class SimServer:
     def _on_data_stream(self, msg: Any, link: Link) -> None:
         self.request_data_stream(msg)
 
+    def _on_setup_signing(self, msg: Any, link: Link) -> None:
+        if self.vehicle.armed:          # both firmwares refuse a key change in flight
+            self.text(mavlink.MAV_SEVERITY_WARNING, self.signing.armed_refusal)
+            return
+        self.signing.setup_signing(msg)
+
     def _on_timesync(self, msg: Any, link: Link) -> None:
         if msg.tc1 == 0:
             self.send(self._tlog_mav.timesync_encode(int(self.vehicle.time_s * 1e9), msg.ts1), link)
@@ -284,7 +315,7 @@ class SimServer:
         "PARAM_REQUEST_LIST": _on_param, "PARAM_REQUEST_READ": _on_param, "PARAM_SET": _on_param,
         "MISSION_REQUEST_LIST": _on_mission, "MISSION_REQUEST_INT": _on_mission, "MISSION_REQUEST": _on_mission,
         "MISSION_COUNT": _on_mission, "MISSION_CLEAR_ALL": _on_mission,
-        "REQUEST_DATA_STREAM": _on_data_stream, "TIMESYNC": _on_timesync,
+        "REQUEST_DATA_STREAM": _on_data_stream, "TIMESYNC": _on_timesync, "SETUP_SIGNING": _on_setup_signing,
     }
 
     # ----------------------------------------------------------------- the loop
@@ -299,16 +330,36 @@ class SimServer:
             self._home_sent = True      # ArduCopter sends HOME_POSITION when home is set
             self.send_now(mavlink.MAVLINK_MSG_ID_HOME_POSITION)
         self.param_protocol.trickle()
-        for msg_id in self.schedule.due(self.vehicle.time_s):
-            msg = telemetry.build(msg_id, self.autopilot, self._tlog_mav)
-            if msg is not None:
-                self.send(msg)
+        self._send_due()
         if self.vehicle.time_s >= self._next_summary_s:
             self._next_summary_s += STATS_PERIOD_S
             summary = self.summary_text()
             if summary != self._last_summary and any(n != "0" for n in summary.rsplit(" ", 1)[1].split(",")):
                 self._last_summary = summary
                 self.text(mavlink.MAV_SEVERITY_INFO, summary)
+
+    def _send_due(self) -> None:
+        """Each link gets what its own schedule says is due; each message is built once per tick."""
+        now_s = self.vehicle.time_s
+        built: dict[int, Any] = {}
+
+        def message(msg_id: int) -> Any:
+            if msg_id not in built:
+                built[msg_id] = telemetry.build(msg_id, self.autopilot, self._tlog_mav)
+                if built[msg_id] is not None:
+                    self.stats.sent += 1
+            return built[msg_id]
+
+        for link in self.links:
+            for msg_id in self._schedule_for(link).due(now_s):
+                msg = message(msg_id)
+                if msg is not None and not link.closed:
+                    link.send_bytes(msg.pack(link.mav))
+        if self.tlog is not None:
+            for msg_id in self._tlog_schedule.due(now_s):
+                msg = message(msg_id)
+                if msg is not None:
+                    self.tlog.write(self._tlog_time_us(), msg.pack(self._tlog_mav))
 
     def summary_text(self) -> str:
         return self.stats.summary(self.autopilot.rejected_setpoints, self.vehicle.clamped_setpoints)
@@ -318,7 +369,7 @@ class SimServer:
         state = self.vehicle.state
         speed = float(math.sqrt(sum(float(v) ** 2 for v in state.vel_ned_m_s)))
         texts = [f"SIM Hit {contact.obstacle_name} at {speed:.2f} m/s" for contact in self.vehicle.multicopter.pop_events()]
-        if self.autopilot.name == "ardupilot" and VehicleEvent.TOUCHDOWN in events:
+        if self.autopilot.touchdown_is_a_hit and VehicleEvent.TOUCHDOWN in events:
             texts.append(f"SIM Hit ground at {self.vehicle.touchdown_speed_m_s:.2f} m/s")
         return texts
 
@@ -331,11 +382,16 @@ class SimServer:
         """Run until ``should_stop()``; ``speedup`` None = as fast as possible, else paced to the wall clock."""
         wall0, sim0 = time.monotonic(), self.vehicle.time_s
         while not should_stop():
+            if speedup is not None:
+                lag_s = wall0 + (self.vehicle.time_s - sim0) / speedup - time.monotonic()
+                if lag_s > 0:
+                    # Ahead of the wall clock: wait, waking for input, which is read at once. The physics
+                    # waits for its time: stepping on every wake-up ran the clock ahead under a flood, then
+                    # froze the vehicle (every stream) until the wall clock caught up.
+                    self._drop_closed_links()      # a send during the last tick may have closed a client
+                    wait_readable([*self.links, *self.tcp_servers], lag_s)
+                    self.poll()
+                    continue
+                if lag_s < -0.5:        # too slow for this speed-up: slip instead of bursting to catch up
+                    wall0 -= lag_s + 0.5
             self.step()
-            if speedup is None:
-                continue
-            lag_s = wall0 + (self.vehicle.time_s - sim0) / speedup - time.monotonic()
-            if lag_s > 0:
-                wait_readable([*self.links, *self.tcp_servers], lag_s)
-            elif lag_s < -0.5:          # too slow for this speed-up: slip instead of bursting to catch up
-                wall0 -= lag_s + 0.5

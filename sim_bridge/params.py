@@ -118,9 +118,10 @@ class ParamStore:
         return float(param.value)
 
     def decode(self, wire_value: float, mav_type: int, name: str) -> float:
-        """The value a PARAM_SET means, given the declared type (falls back to the stored type)."""
+        """The value a PARAM_SET means. PX4 (bytewise) reads the four bytes as the parameter's own type, as
+        its param_set does, whatever type the message declares: a float NaN declared INT8 must not become 0."""
         param = self.param(name)
-        mav_type = mav_type if mav_type in _STRUCT_FOR_TYPE or mav_type == mavlink.MAV_PARAM_TYPE_REAL32 else param.mav_type
+        mav_type = param.mav_type
         if self.bytewise and mav_type in _STRUCT_FOR_TYPE:
             raw = struct.pack("<f", wire_value)
             size = struct.calcsize(_STRUCT_FOR_TYPE[mav_type])

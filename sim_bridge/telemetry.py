@@ -45,9 +45,13 @@ def _heartbeat(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _sys_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    present = SENSORS | M.MAV_SYS_STATUS_PREARM_CHECK
-    health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0)
-    return mav.sys_status_encode(present, present, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
+    fence_present, fence_enabled, fence_healthy = ap.geofence_status()
+    fence = M.MAV_SYS_STATUS_GEOFENCE
+    prearm = M.MAV_SYS_STATUS_PREARM_CHECK if ap.prearm_bit_present else 0
+    present = SENSORS | prearm | (fence if fence_present else 0)
+    enabled = SENSORS | prearm | (fence if fence_enabled else 0)
+    health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0) | (fence if fence_healthy else 0)
+    return mav.sys_status_encode(present, enabled, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
                                  0, 0, 0, 0, 0, 0)
 
 
@@ -58,7 +62,9 @@ def _attitude(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
                                getattr(s, "yaw_rate_rad_s", 0.0))
 
 
-def _local_position_ned(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
+def _local_position_ned(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message | None:
+    if not ap.has_position():
+        return None   # ArduCopter sends no LOCAL_POSITION_NED before its EKF has a position
     s = ap.vehicle.state
     p, v = s.pos_ned_m, s.vel_ned_m_s
     return mav.local_position_ned_encode(ap.time_boot_ms(), p[0], p[1], p[2], v[0], v[1], v[2])
@@ -133,8 +139,7 @@ def _battery_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _ekf_status_report(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    flags = 831 if ap.booted else 167   # ArduCopter's values before and after "EKF3 is using GPS"
-    return mav.ekf_status_report_encode(flags, 0.01, 0.01, 0.01, 0.01, 0.0)
+    return mav.ekf_status_report_encode(ap.ekf_flags(), 0.01, 0.01, 0.01, 0.01, 0.0)
 
 
 def _altitude(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:

@@ -11,9 +11,10 @@ import errno
 import select
 import socket
 import struct
+import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import BinaryIO
+from typing import BinaryIO, Callable
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
@@ -95,6 +96,8 @@ class UdpOutLink(Link):
         self.sock.setblocking(False)
         self.sock.setsockopt(socket.SOL_SOCKET, socket.SO_RCVBUF, 1 << 20)   # absorb bursts (kernel caps it)
         self.sock.bind(("127.0.0.1" if self.dest[0].startswith("127.") else "0.0.0.0", 0))
+        #: ``gcs-sim --allow``: datagrams from a host it refuses are dropped unread (None = anyone)
+        self.peer_filter: Callable[[str], bool] | None = None
 
     def fileno(self) -> int:
         return self.sock.fileno()
@@ -111,13 +114,14 @@ class UdpOutLink(Link):
         chunks = []
         for _ in range(MAX_DATAGRAMS_PER_POLL):
             try:
-                data = self.sock.recv(65535)
+                data, sender = self.sock.recvfrom(65535)
             except (BlockingIOError, InterruptedError):
                 break
             except OSError:
                 # ECONNREFUSED from an earlier sendto surfaces here on Linux; not a datagram.
                 continue
-            chunks.append(data)
+            if self.peer_filter is None or self.peer_filter(sender[0]):
+                chunks.append(data)
         return chunks
 
     def close(self) -> None:
@@ -195,6 +199,8 @@ class TcpServer:
         self.sock.listen(8)
         self.sock.setblocking(False)
         self.host, self.port = self.sock.getsockname()[:2]
+        #: ``gcs-sim --allow``: a client from a host it refuses is closed at once (None = anyone)
+        self.peer_filter: Callable[[str], bool] | None = None
 
     def fileno(self) -> int:
         return self.sock.fileno()
@@ -208,6 +214,9 @@ class TcpServer:
                 break
             except OSError:
                 break
+            if self.peer_filter is not None and not self.peer_filter(peer[0]):
+                conn.close()
+                continue
             clients.append(TcpClientLink(conn, peer))
         return clients
 
@@ -219,10 +228,11 @@ def wait_readable(fds: list, timeout_s: float) -> None:
     """Sleep until one of ``fds`` is readable or ``timeout_s`` passes (the real-time pacing wait)."""
     if timeout_s <= 0:
         return
-    if fds:
-        select.select(fds, [], [], timeout_s)
-    else:
-        select.select([], [], [], timeout_s)
+    open_fds = [fd for fd in fds if not getattr(fd, "closed", False) and fd.fileno() >= 0]
+    try:
+        select.select(open_fds, [], [], timeout_s)
+    except (OSError, ValueError):     # a socket closed under us: just pace, the next poll forgets it
+        time.sleep(timeout_s)
 
 
 class TlogWriter:

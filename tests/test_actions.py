@@ -161,3 +161,52 @@ def test_flight_actions_and_unknown_ids() -> None:
     assert set(ACTIONS) >= {"take_off", "land", "arm", "disarm"}
     with pytest.raises(UnknownActionError):
         mapper.apply("barrel_roll", flying())
+
+
+def test_stop_holds_where_it_was_heard_and_motions_hold_their_height() -> None:
+    mapper = ActionMapper(SETTINGS)
+    hover = flying(height_m=2.0, north_m=1.0, east_m=-1.0)
+    first = mapper.setpoint(hover)   # after take-off: hold here
+    assert (first.hold_north_m, first.hold_east_m, first.hold_down_m) == (1.0, -1.0, -2.0)
+    mapper.apply("go_forward", hover)
+    moving = mapper.setpoint(flying(height_m=1.7, north_m=2.0, east_m=-1.0))   # sinking: the height is held
+    assert moving.holds == (False, False, True) and moving.hold_down_m == -2.0
+    heard = flying(height_m=1.9, north_m=3.2, east_m=-0.9)
+    mapper.apply("stop", heard)
+    later = mapper.setpoint(flying(height_m=1.9, north_m=3.9, east_m=-0.9))   # overshoot: back to the stop point
+    assert (later.hold_north_m, later.hold_east_m, later.hold_down_m) == (3.2, -0.9, -2.0)
+    assert later.is_stop
+    mapper.apply("turn_right", flying(north_m=3.5, east_m=-0.9))   # a turn keeps the stop's point
+    turning = mapper.setpoint(hover)
+    assert (turning.hold_north_m, turning.hold_east_m, turning.hold_down_m) == (3.2, -0.9, -2.0)
+    assert turning.yaw_deg == pytest.approx(SETTINGS.turn_step_deg)
+
+
+def test_vertical_motion_holds_its_point_and_the_new_height_is_kept() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("stop", flying(height_m=2.0, north_m=5.0, east_m=5.0))
+    mapper.apply("up", flying(height_m=2.0, north_m=5.1, east_m=5.0))
+    climbing = mapper.setpoint(flying(height_m=2.5, north_m=5.2, east_m=5.0))
+    assert climbing.holds == (True, True, False) and (climbing.hold_north_m, climbing.hold_east_m) == (5.0, 5.0)
+    assert climbing.down_m_s == pytest.approx(-V)
+    mapper.apply("go_left", flying(height_m=3.0, north_m=5.0, east_m=5.0))
+    assert mapper.setpoint(flying(height_m=2.8)).hold_down_m == -3.0   # where the climb ended
+
+
+def test_floor_and_link_loss_stops_hold_the_position_they_stopped_at() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("down", flying(height_m=2.0, north_m=1.0, east_m=1.0))
+    at_floor = flying(height_m=SETTINGS.floor_m - 0.01, north_m=1.0, east_m=1.0)
+    stopped = mapper.setpoint(at_floor)
+    assert mapper.action == "stop" and stopped.hold_down_m == pytest.approx(at_floor.down_m)
+    mapper.apply("go_back", flying(height_m=0.5, north_m=1.0, east_m=1.0))
+    lost = replace(flying(height_m=0.5, north_m=0.4, east_m=1.0), link_ok=False)
+    held = mapper.setpoint(lost)
+    assert mapper.action == "stop" and (held.hold_north_m, held.hold_east_m) == (0.4, 1.0)
+
+
+def test_unknown_position_holds_nothing() -> None:
+    mapper = ActionMapper(SETTINGS)
+    blind = VehicleState(system_id=1, heading_deg=0.0, last_heard_s=0.0, link_ok=True)
+    mapper.apply("stop", blind)
+    assert mapper.setpoint(blind).holds == (False, False, False)

@@ -7,6 +7,7 @@ and must honour the interface in gcs_voice/asr/base.py on real speech, silence a
 
 from __future__ import annotations
 
+import numpy as np
 import pytest
 
 from gcs_voice.asr.base import SAMPLE_RATE, Recognition, Recognizer, RecognizerStream
@@ -84,3 +85,29 @@ def test_engine_conforms(loaded):
     stream = recognizer.start_stream(lang)
     stream.accept(pcm)
     assert normalize_text(stream.finish().text) == normalize_text(expected)
+
+
+def _decide(recognizer, lang: str, pcm: bytes) -> Recognition:
+    stream = recognizer.start_stream(lang)
+    stream.accept(pcm)
+    return stream.finish()
+
+
+@pytest.mark.slow
+def test_same_utterance_same_recognition_whatever_came_before(loaded, tmp_path):
+    """Same input, same answer: decoder state (PocketSphinx CMN and noise estimate, Vosk adaptation and
+    Kaldi's random dither, Whisper sampling) must not carry from one utterance to the next. The whole
+    Recognition is compared (scores and evidence too), not only the best text."""
+    engine, lang, recognizer, pcm, expected = loaded
+    others = {"en": ["the weather is nice today", "go down"], "ko": ["안녕하세요 오늘 날씨가 좋네요", "위로"]}[lang]
+    first = _decide(recognizer, lang, pcm)
+    assert normalize_text(first.text) == normalize_text(expected), first
+    preceding = [pcm_of(text, tmp_path, VOICES[lang]) for text in others]
+    # a different speech, loud noise and silence before the same utterance again
+    rng = np.random.default_rng(7)
+    preceding.append((rng.normal(0, 8000, SAMPLE_RATE).clip(-32768, 32767).astype("<i2")).tobytes())
+    preceding.append(bytes(SAMPLE_RATE))
+    for before in preceding:
+        _decide(recognizer, lang, before)
+        again = _decide(recognizer, lang, pcm)
+        assert again == first, (again, first)

@@ -3,7 +3,6 @@ goes to the garbage branch instead of being forced into a command; English only.
 
 from __future__ import annotations
 
-import csv
 import logging
 
 import pytest
@@ -44,23 +43,67 @@ def test_out_of_domain_speech_is_not_forced_into_a_command(grammar, tmp_path, sa
     assert result.extra["out_of_grammar"] == 1.0
 
 
+@pytest.mark.parametrize("wpm", [120, pytest.param(150, marks=pytest.mark.xfail(strict=True, reason=(
+    "open (issue 10 item 8): exact digital silence sends it to garbage; dither_lsb = 1 fixes it but loses "
+    "zero-padded 'turn right' / 'move forward', so the dither ships off"))), 175])
+def test_stop_in_exact_digital_silence_is_heard(grammar, tmp_path, wpm):
+    """espeak-ng's own WAV (22.05 kHz, exact zeros around the word, no sox dither), as the PX4 flight
+    of issue 10 item 8 fed it: "stop" at 150 wpm goes to the garbage branch and the vehicle never
+    stopped. Cause: the digital silence (23 % of the samples are exactly 0); the engine's seeded 1-LSB
+    fill of zero runs (engines.toml dither_lsb = 1) makes it "stop" at posterior 1.0."""
+    import subprocess
+
+    from gcs_voice.audio.sources import read_wav
+    from tests.asr_speech import need
+
+    need("espeak-ng")
+    wav = tmp_path / f"stop_{wpm}.wav"
+    subprocess.run(["espeak-ng", "-v", "en-us", "-s", str(wpm), "-w", str(wav), "stop"], check=True)
+    result = _recognise(grammar, read_wav(wav))
+    assert result.text == "stop" and result.extra["out_of_grammar"] == 0.0, result
+
+
+def test_filling_digital_silence_hears_the_150_wpm_stop(tmp_path):
+    """The fix that exists (off by default, see engines.toml dither_lsb): same answer twice, "stop"."""
+    import subprocess
+
+    from gcs_voice.asr.sphinx_engine import SphinxRecognizer
+    from gcs_voice.audio.sources import read_wav
+    from tests.asr_speech import need
+
+    need("espeak-ng")
+    wav = tmp_path / "stop_150.wav"
+    subprocess.run(["espeak-ng", "-v", "en-us", "-s", "150", "-w", str(wav), "stop"], check=True)
+    filled = SphinxRecognizer([EN], settings={"dither_lsb": 1})
+    first, again = _recognise(filled, read_wav(wav)), _recognise(filled, read_wav(wav))
+    assert first.text == "stop" and first == again, first
+
+
 @pytest.mark.slow
 def test_real_recordings(grammar, real_speech_dir):
-    """A few of the real speakers: most commands right, no non-command accepted as one of them."""
+    """The held-out speakers of ../shared/speech (test split of tools/bench_sphinx_real.py, never tuned
+    on) with the shipped settings and the default matcher: the rates measured by that tool
+    (docs/bench/sphinx_real.md). PocketSphinx does NOT meet the 2 % bound on non-commands (no setting
+    did, on dev): this pins the measured rates so a change that acts on more other speech or gets
+    fewer commands fails, and the bound can only tighten."""
     from gcs_voice.audio.sources import read_wav
-    from gcs_voice.understanding import get_matcher
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+    from tools.bench_sphinx_real import real_rows
 
-    rows = list(csv.DictReader(open(real_speech_dir / "labels.tsv"), delimiter="\t"))
-    commands = [r for r in rows if r["class"] != "none"][::5]
-    others = [r for r in rows if r["class"] == "none"][::2]
-    matcher = get_matcher("levenshtein")
-    right = sum(matcher.decide(_recognise(grammar, read_wav(real_speech_dir / r["path"])), [EN]).action == r["class"]
-                for r in commands)
-    accepted = [r["word"] for r in others
-                if matcher.decide(_recognise(grammar, read_wav(real_speech_dir / r["path"])), [EN]).accepted]
-    # measured 51/75 right and 1/20 accepted on the whole set (docs/bench/asr.md)
-    assert right >= len(commands) // 2, f"{right}/{len(commands)}"
-    assert len(accepted) <= 1, accepted
+    rows = [r for r in real_rows(real_speech_dir) if r.split == "test"]
+    matcher = get_matcher(DEFAULT_MATCHER)
+    commands = [r for r in rows if r.kind == "command"]
+    others = [r for r in rows if r.kind != "command"]
+    actions = {r.path: matcher.decide(_recognise(grammar, read_wav(real_speech_dir / r.path)), [EN]).action
+               for r in rows}
+    right = sum(actions[r.path] == r.truth for r in commands)
+    wrong = [(r.path, actions[r.path]) for r in commands if actions[r.path] not in (None, r.truth)]
+    acted = [(r.path, actions[r.path]) for r in others if actions[r.path] is not None]
+    # measured (docs/bench/sphinx_real.md, phonetic): 84/129 right, 3 wrong, 11/108 non-commands acted on
+    assert len(commands) == 129 and len(others) == 108
+    assert right >= 84, f"{right}/{len(commands)} commands right"
+    assert len(wrong) <= 3, wrong
+    assert len(acted) <= 11, acted
 
 
 def test_free_mode_gives_open_vocabulary_alternatives(tmp_path):

@@ -65,3 +65,67 @@ def test_session_paths_never_overwrite(tmp_path: Path) -> None:
     second = session_paths(tmp_path)
     assert second[0] != first[0] and second[0].suffix == ".tlog" and second[1].suffix == ".jsonl"
     assert session_paths(tmp_path, "named") == (tmp_path / "named.tlog", tmp_path / "named.jsonl")
+
+
+def test_view_says_what_the_vehicle_waits_for() -> None:
+    """Disarmed: the vehicle panel shows the readiness line (link.readiness), from a real VehicleState."""
+    from rich.console import Console
+
+    from gcs_voice.link.autopilots import ARDUPILOT
+    from gcs_voice.link.state import VehicleState
+    from gcs_voice.session.bridge import status_of
+
+    booting = VehicleState(system_id=1, profile=ARDUPILOT, heartbeats=3, armed=False, mode="GUIDED",
+                           system_status=3, sensors_present=0x10000000, sensors_enabled=0x10000000,
+                           sensors_health=0, ekf_flags=167, prearm_text="PreArm: Need Position Estimate",
+                           last_heard_s=0.0, link_ok=True)
+    status = status_of(booting, "take_off")
+    assert status["ready"] == ("waiting for: pre-arm checks, position (EKF) "
+                               "(vehicle: PreArm: Need Position Estimate)")
+    console = Console(width=140, record=True, file=io.StringIO())
+    console.print(render(ViewState(), status))
+    assert "waiting for: pre-arm checks, position (EKF)" in console.export_text()
+    armed = status_of(VehicleState(system_id=1, profile=ARDUPILOT, heartbeats=3, armed=True), "stop")
+    assert armed["ready"] is None
+
+
+def test_view_says_thinking_while_a_decision_is_pending() -> None:
+    from rich.console import Console
+
+    bus, state = EventBus(), ViewState()
+    bus.subscribe(state)
+
+    def shown() -> str:
+        console = Console(width=110, record=True, file=io.StringIO())
+        console.print(render(state, {"link": "ok"}))
+        return console.export_text()
+
+    bus.emit("thinking", "thinking… (1.0 s from stop.wav)", source="stop.wav", utterance_end_t=1.0)
+    assert "thinking…" in shown()
+    bus.emit("spotted", "stop word 'stop' heard: stopping now", word="stop")
+    bus.emit("heard", "heard 'stop' (whisper, en)", text="stop", engine="whisper", lang="en")
+    text = shown()
+    assert "thinking…" not in text and "stop word 'stop' heard" in text
+
+
+def test_a_decision_later_than_late_s_is_said(tmp_path: Path, monkeypatch) -> None:
+    """Real PocketSphinx on espeak-ng speech; the late limit set to 0 s and to 60 s."""
+    from gcs_voice.asr.registry import load_recognizer
+    from gcs_voice.domain.dictionary import load_language
+    from gcs_voice.session import listen
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+    from tests.asr_speech import pcm_of
+
+    en = load_language("en")
+    bus = EventBus()
+    pipeline = listen.VoicePipeline(load_recognizer("sphinx", [en]), get_matcher(DEFAULT_MATCHER), [en], "en", bus,
+                                    realtime=False)
+    pcm = pcm_of("go up", tmp_path)
+    monkeypatch.setattr(listen, "LATE_S", 60.0)
+    pipeline.hear(pcm, "up.wav", recorded=True)
+    kinds = [e.kind for e in bus.history]
+    assert kinds.index("thinking") < kinds.index("heard") and "late" not in kinds
+    monkeypatch.setattr(listen, "LATE_S", 0.0)
+    pipeline.hear(pcm, "up.wav", recorded=True)
+    late = [e for e in bus.history if e.kind == "late"]
+    assert len(late) == 1 and late[0].data["late_s"] >= 0.0 and "late: decided" in late[0].msg

@@ -9,9 +9,11 @@ from __future__ import annotations
 import threading
 import time
 from pathlib import Path
+from typing import Callable
 
 import pytest
 
+from conftest import SimProcess
 from e2e_support import SPEEDUP, require_parts
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.session.bridge import Bridge, Request
@@ -21,18 +23,17 @@ from gcs_voice.link import VehicleLink
 from gcs_voice.session.listen import start_voice_thread
 from gcs_voice.session.session_log import SessionLog
 from gcs_voice.settings import load_settings
-from gcs_voice.session.sim_process import BundledSim
 
 pytestmark = pytest.mark.slow
 
 
-def _wait(predicate, timeout_s: float) -> bool:
+def _wait(predicate: Callable[[], bool], timeout_s: float, what: str) -> None:
+    """Poll until ``predicate()``; raise naming ``what`` if it never holds (the script then ends the session)."""
     deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        if predicate():
-            return True
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"{what}: not within {timeout_s:.0f} s")
         time.sleep(0.05)
-    return False
 
 
 def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
@@ -45,7 +46,7 @@ def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
     bus.subscribe(log)
     tlog = tmp_path / "s.tlog"
     marks: dict[str, float] = {}
-    with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
+    with SimProcess("ardupilot", "--speedup", f"{SPEEDUP:g}") as sim:
         link = VehicleLink(sim.connection, settings, tlog_path=tlog)
         link.open()
         try:
@@ -53,37 +54,57 @@ def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
             link.request_telemetry()
             bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
 
+            def done(request: Request, what: str) -> None:
+                if not request.done.wait(10):
+                    raise AssertionError(f"{what}: request not handled within 10 s")
+
+            def sent_more(count: int, what: str) -> None:
+                first = link.setpoints_sent
+                _wait(lambda: link.setpoints_sent >= first + count, 10, what)
+
+            def link_event(state: str) -> bool:
+                return any(e.kind == "link" and e.data.get("state") == state for e in bus.history)
+
             def script() -> None:
-                early = bridge.submit(Request("go_forward", "key"))
-                early.done.wait(5)
-                bridge.submit(Request("take_off", "key"))
-                assert bridge.flying_ready.wait(60)
-                bridge.submit(Request("disarm", "key")).done.wait(5)  # in the air: must be refused
-                bridge.submit(Request("go_forward", "key")).done.wait(5)
-                time.sleep(1.0)
-                marks["pause"] = time.time()
-                sim.pause()
-                _wait(lambda: any(e.kind == "link" and e.data.get("state") == "lost" for e in bus.history), 6)
-                marks["lost"] = time.time()
-                refused = bridge.submit(Request("go_back", "key"))
-                refused.done.wait(5)
-                time.sleep(0.5)
-                marks["resume"] = time.time()
-                sim.resume()
-                _wait(lambda: any(e.kind == "link" and e.data.get("state") == "restored" for e in bus.history), 6)
-                time.sleep(1.0)
-                bridge.submit(Request("go_right", "key")).done.wait(5)
-                time.sleep(1.0)
+                # Runs beside bridge.run(); a failure is recorded and still ends the session (by the crash
+                # below), so the main thread reports it instead of hanging or losing it in this thread.
+                try:
+                    done(bridge.submit(Request("go_forward", "key")), "go_forward before take-off")
+                    bridge.submit(Request("take_off", "key"))
+                    if not bridge.flying_ready.wait(60):
+                        raise AssertionError("take-off did not finish within 60 s")
+                    done(bridge.submit(Request("disarm", "key")), "disarm in the air")   # must be refused
+                    done(bridge.submit(Request("go_forward", "key")), "go_forward")
+                    sent_more(5, "forward setpoints on the wire")
+                    marks["pause"] = time.time()
+                    sim.pause()
+                    _wait(lambda: link_event("lost"), 6, "link lost after the freeze")
+                    marks["lost"] = time.time()
+                    done(bridge.submit(Request("go_back", "key")), "go_back while lost")
+                    time.sleep(0.5)   # a silence to check: nothing may be sent while lost
+                    marks["resume"] = time.time()
+                    sim.resume()
+                    _wait(lambda: link_event("restored"), 6, "link restored after the thaw")
+                    sent_more(1, "the first setpoint after the return")
+                    done(bridge.submit(Request("go_right", "key")), "go_right")
+                    sent_more(5, "go_right setpoints on the wire")
+                except BaseException as exc:     # noqa: BLE001 - reported by the main thread
+                    failures.append(exc)
                 marks["crash"] = time.time()
                 start_voice_thread(bridge, crash)  # the voice side dies mid-flight
 
             def crash() -> None:
                 raise RuntimeError("microphone unplugged")
 
+            failures: list[BaseException] = []
             worker = threading.Thread(target=script, daemon=True)
             worker.start()
-            assert bridge.run() == 1  # ended by the crash, vehicle stopped first
-            worker.join(5)
+            exit_code = bridge.run()
+            worker.join(10)
+            assert not worker.is_alive(), "the script thread did not finish"
+            if failures:
+                raise failures[0]
+            assert exit_code == 1  # ended by the crash, vehicle stopped first
         finally:
             link.close()
             log.close()

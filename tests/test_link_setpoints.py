@@ -59,3 +59,34 @@ def test_stop_keeps_heading_and_nan_is_refused() -> None:
             Setpoint(0, 0, 0, bad)
     assert wrap_deg(-1e-20) == 0.0 and wrap_deg(-90) == 270.0 and wrap_deg(720.5) == pytest.approx(0.5)
     assert math.copysign(1.0, wrap_deg(-0.0)) == 1.0
+
+
+# (setpoint, type_mask for ArduCopter, for PX4): the table in docs/link.md
+HOLD_ALL = Setpoint(0.0, 0.0, 0.0, 90.0, 1.0, 2.0, -1.5)
+HOLD_HEIGHT = Setpoint(0.5, 0.0, 0.0, 90.0, None, None, -1.5)
+HOLD_POINT = Setpoint(0.0, 0.0, -0.3, 90.0, 1.0, 2.0, None)
+NO_HOLD = Setpoint(0.5, 0.0, 0.0, 90.0)
+
+
+@pytest.mark.parametrize("setpoint, arducopter, px4", [
+    (HOLD_ALL, 2496, 2496), (HOLD_HEIGHT, 2503, 2499), (HOLD_POINT, 2503, 2500), (NO_HOLD, 2503, 2503)])
+def test_type_mask_per_autopilot(setpoint: Setpoint, arducopter: int, px4: int) -> None:
+    mav = mavlink.MAVLink(None, srcSystem=255, srcComponent=190)
+    for separately, mask in ((False, arducopter), (True, px4)):
+        msg = mav.set_position_target_local_ned_encode(*setpoint_fields(setpoint, 1, 1, 0, separately))
+        msg = mavlink.MAVLink(None).parse_char(msg.pack(mav))
+        assert msg.type_mask == mask
+        # every field that is used carries the value; ignored positions are zero
+        used = [not mask & bit for bit in (1, 2, 4)]
+        for value, hold, is_used in zip((msg.x, msg.y, msg.z), (setpoint.hold_north_m, setpoint.hold_east_m,
+                                                                 setpoint.hold_down_m), used):
+            assert value == (pytest.approx(hold) if is_used else 0.0)
+        assert not mask & (8 | 16 | 32)   # velocity always used (zero for a stop): PX4 needs all three
+        assert msg.vx == pytest.approx(setpoint.ned_m_s()[0], abs=1e-6)
+
+
+def test_a_hold_names_both_horizontal_axes() -> None:
+    with pytest.raises(ValueError):
+        Setpoint(0.0, 0.0, 0.0, 0.0, 1.0, None, None)
+    with pytest.raises(ValueError):
+        Setpoint(0.0, 0.0, 0.0, 0.0, None, None, math.nan)

@@ -7,55 +7,40 @@ never imports it. Real time, because the link's timers (10 Hz stream, 2 s link l
 from __future__ import annotations
 
 import math
-import os
-import re
-import signal
-import subprocess
-import sys
 import time
 from pathlib import Path
+from typing import Callable
 
 import pytest
 from pymavlink import mavutil
 
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link import VehicleLink
+from gcs_voice.link.state import VehicleState
 from gcs_voice.settings import load_settings
-from link_peer import free_udp_port
+from conftest import SimProcess
 
-REPO = Path(__file__).resolve().parent.parent
 pytestmark = pytest.mark.slow
 
 
-class Sim:
-    def __init__(self, autopilot: str, tmp_path: Path, *extra: str) -> None:
-        self.port = free_udp_port()
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "sim_bridge.cli", "--out", f"udp:127.0.0.1:{self.port}", "--autopilot", autopilot,
-             "--room", "open_field", "--duration", "120", *extra],
-            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-        )
-
-    def ready_line(self) -> str:
-        return self.proc.stdout.readline()
-
-    def __enter__(self) -> "Sim":
-        return self
-
-    def __exit__(self, *_exc) -> None:
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGCONT)
-            self.proc.terminate()
-            try:
-                self.proc.wait(timeout=5)
-            except subprocess.TimeoutExpired:
-                self.proc.kill()
-                self.proc.wait()
-
-
-def _fly(link: VehicleLink, mapper: ActionMapper, action: str, seconds: float) -> None:
+def _fly_until(link: VehicleLink, mapper: ActionMapper, action: str, done: Callable[[VehicleState], bool],
+               what: str, timeout_s: float = 20.0) -> VehicleState:
+    """Apply ``action`` and wait for its outcome on the wire (not for a wall-clock guess); fail if it never comes."""
     mapper.apply(action, link.state)
-    time.sleep(seconds)
+    reached = link.wait_for(done, timeout_s)
+    assert reached is not None, f"{action}: {what} not seen within {timeout_s:.0f} s; state {link.state}"
+    return reached
+
+
+def _stopped(state: VehicleState) -> bool:
+    return math.hypot(state.north_m_s or 0.0, state.east_m_s or 0.0) < 0.1 and abs(state.down_m_s or 0.0) < 0.1
+
+
+def _along_m(start: VehicleState, now: VehicleState, heading_deg: float) -> tuple[float, float]:
+    """(forward, right) displacement from ``start`` for a vehicle facing ``heading_deg``."""
+    dn, de = now.north_m - start.north_m, now.east_m - start.east_m
+    h = math.radians(heading_deg)
+    return dn * math.cos(h) + de * math.sin(h), -dn * math.sin(h) + de * math.cos(h)
 
 
 def _heading_error_deg(heading_deg: float, target_deg: float) -> float:
@@ -66,8 +51,8 @@ def _heading_error_deg(heading_deg: float, target_deg: float) -> float:
 def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -> None:
     settings = load_settings()
     mapper = ActionMapper(settings)
-    with Sim(autopilot, tmp_path) as sim, VehicleLink(f"udpin:127.0.0.1:{sim.port}", settings,
-                                                      tlog_path=tmp_path / "flight.tlog") as link:
+    with SimProcess(autopilot, "--duration", "300") as sim, \
+            VehicleLink(sim.connection, settings, tlog_path=tmp_path / "flight.tlog") as link:
         state = link.connect(timeout_s=20)
         assert state.autopilot == ("PX4" if autopilot == "px4" else "ArduPilot")
         result = link.takeoff(1.5, source=mapper.setpoint)
@@ -78,50 +63,44 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
         assert 1.2 < link.state.height_m < 1.9
         heading0 = mapper.yaw_target_deg
 
+        def facing(target_deg: float):
+            return lambda s: s.heading_deg is not None and _heading_error_deg(s.heading_deg, target_deg) < 5.0
+
         start = link.state
-        _fly(link, mapper, "go_forward", 3.0)
-        _fly(link, mapper, "stop", 1.5)
-        moved = link.state
-        forward_m = (moved.north_m - start.north_m) * math.cos(math.radians(heading0)) + \
-                    (moved.east_m - start.east_m) * math.sin(math.radians(heading0))
-        sideways_m = -(moved.north_m - start.north_m) * math.sin(math.radians(heading0)) + \
-                     (moved.east_m - start.east_m) * math.cos(math.radians(heading0))
+        _fly_until(link, mapper, "go_forward", lambda s: _along_m(start, s, heading0)[0] > 1.0, "1 m forward")
+        heard = link.state
+        # stop holds where it was heard: the overshoot is flown back, to rest within 0.2 m of that point
+        moved = _fly_until(link, mapper, "stop", lambda s: _stopped(s) and math.hypot(
+            s.north_m - heard.north_m, s.east_m - heard.east_m) < 0.2, "at rest within 0.2 m of where stop was heard")
+        # and the leg held its height
+        assert abs(moved.height_m - start.height_m) < 0.2
+        forward_m, sideways_m = _along_m(start, moved, heading0)
         assert 0.8 < forward_m < 2.5 and abs(sideways_m) < 0.3
 
-        _fly(link, mapper, "turn_right", 3.5)
-        _fly(link, mapper, "turn_right", 3.5)
+        _fly_until(link, mapper, "turn_right", facing(heading0 + 90.0), "facing +90 deg")
+        _fly_until(link, mapper, "turn_right", facing(heading0 + 180.0), "facing +180 deg")
         assert mapper.yaw_target_deg == pytest.approx((heading0 + 180.0) % 360.0)
-        assert _heading_error_deg(link.state.heading_deg, heading0 + 180.0) < 8.0
 
         start = link.state
-        _fly(link, mapper, "go_right", 2.5)  # facing back: right is the original left
-        _fly(link, mapper, "stop", 1.5)
-        moved = link.state
-        left_of_start_m = (moved.north_m - start.north_m) * -math.sin(math.radians(heading0)) + \
-                          (moved.east_m - start.east_m) * -math.cos(math.radians(heading0))
-        assert left_of_start_m > 0.6, "go_right after a 180 deg turn must move toward the original left"
+        # facing back: right is the original left
+        _fly_until(link, mapper, "go_right", lambda s: -_along_m(start, s, heading0)[1] > 0.7, "0.7 m to the left")
+        moved = _fly_until(link, mapper, "stop", _stopped, "at rest")
+        assert -_along_m(start, moved, heading0)[1] > 0.6, "go_right after a 180 deg turn moves toward the original left"
         assert _heading_error_deg(moved.heading_deg, heading0 + 180.0) < 8.0  # heading kept while moving
 
         before_up = link.state.height_m
-        _fly(link, mapper, "up", 2.0)
-        assert link.state.height_m > before_up + 0.3
-        _fly(link, mapper, "turn_left", 3.5)
-        _fly(link, mapper, "turn_left", 3.5)
+        _fly_until(link, mapper, "up", lambda s: s.height_m > before_up + 0.3, "0.3 m higher")
+        _fly_until(link, mapper, "turn_left", facing(heading0 + 90.0), "facing +90 deg")
+        _fly_until(link, mapper, "turn_left", facing(heading0), "facing the start heading")
         assert mapper.yaw_target_deg == pytest.approx(heading0 % 360.0)
-        assert _heading_error_deg(link.state.heading_deg, heading0) < 8.0
         start = link.state
-        _fly(link, mapper, "go_back", 2.0)
-        _fly(link, mapper, "stop", 1.5)
-        moved = link.state
-        back_m = (moved.north_m - start.north_m) * math.cos(math.radians(heading0)) + \
-                 (moved.east_m - start.east_m) * math.sin(math.radians(heading0))
-        assert back_m < -0.4
+        _fly_until(link, mapper, "go_back", lambda s: _along_m(start, s, heading0)[0] < -0.5, "0.5 m back")
+        moved = _fly_until(link, mapper, "stop", _stopped, "at rest")
+        assert _along_m(start, moved, heading0)[0] < -0.4
 
-        _fly(link, mapper, "down", 0.0)
-        reached = link.wait_for(lambda s: mapper.action == "stop", 15.0)
-        assert reached is not None, "down never stopped at the floor"
-        time.sleep(1.5)
-        assert 0.3 < link.state.height_m < 0.75
+        _fly_until(link, mapper, "down", lambda s: mapper.action == "stop", "down stopped at the floor")
+        settled = link.wait_for(lambda s: _stopped(s) and 0.3 < s.height_m < 0.75, 10.0)
+        assert settled is not None, f"not at rest 0.3-0.75 m up after down: {link.state}"
         assert "floor" in mapper.events[-1]
 
         landed = link.land()
@@ -142,7 +121,10 @@ def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -
             setpoint_t.append(msg._timestamp)
         elif msg.command == 176:
             mode_requests.append((msg._timestamp, msg.param2, msg.param3))
-    assert encodings == {(1, 2503)}
+    # docs/link.md: stop/turn carry position + velocity + yaw (2496) on both; PX4's horizontal legs hold their
+    # height (2499) and vertical ones their point (2500); ArduCopter drops a partial position, so 2503
+    expected = {(1, 2496), (1, 2499), (1, 2500)} if autopilot == "px4" else {(1, 2496), (1, 2503)}
+    assert encodings == expected
     if autopilot == "px4":  # OFFBOARD asked for only after >= 0.5 s of setpoints at > 2 Hz
         offboard_t = [t for t, main, sub in mode_requests if (main, sub) == (6, 0)]
         assert offboard_t
@@ -159,22 +141,24 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
     settings = load_settings()
     mapper = ActionMapper(settings)
     tlog = tmp_path / "loss.tlog"
-    with Sim("ardupilot", tmp_path) as sim, VehicleLink(f"udpin:127.0.0.1:{sim.port}", settings, tlog_path=tlog) as link:
+    with SimProcess("ardupilot", "--duration", "300") as sim, \
+            VehicleLink(sim.connection, settings, tlog_path=tlog) as link:
         link.connect(timeout_s=20)
         assert link.takeoff(1.5, source=mapper.setpoint).ok
         mapper.reset_heading(link.state)
         link.start_stream(mapper.setpoint)
-        mapper.apply("go_forward", link.state)
-        time.sleep(1.0)
-        os.kill(sim.proc.pid, signal.SIGSTOP)
+        _fly_until(link, mapper, "go_forward", lambda s: math.hypot(s.north_m_s or 0.0, s.east_m_s or 0.0) > 0.3,
+                   "moving")
+        sim.pause()
         paused_wall = time.time()
         assert link.wait_for(lambda s: not s.link_ok, 3.5) is not None
         lost_wall = time.time()
         assert 1.8 < lost_wall - paused_wall < 2.8
-        time.sleep(1.0)
-        os.kill(sim.proc.pid, signal.SIGCONT)
+        time.sleep(1.0)       # a silence to check: nothing may be sent in it
+        sim.resume()
         assert link.wait_for(lambda s: s.link_ok, 5.0) is not None
-        time.sleep(1.0)
+        sent_at_return = link.setpoints_sent
+        assert link.wait_for(lambda s: link.setpoints_sent >= sent_at_return + 3, 5.0) is not None
         assert mapper.action == "stop"  # the mapper also turned the lost action into a stop
         assert link.land().ok
     log = mavutil.mavlink_connection(str(tlog))
@@ -191,11 +175,8 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
 
 def test_tcp_client_to_the_simulator(tmp_path: Path) -> None:
     """``--connect tcp:HOST:PORT`` (like SITL's 5760): state and telemetry arrive, commands are answered."""
-    with Sim("ardupilot", tmp_path, "--tcp", "0") as sim:
-        line = sim.ready_line()
-        match = re.search(r"tcp (127\.0\.0\.1:\d+)", line)
-        assert match, line
-        with VehicleLink(f"tcp:{match.group(1)}") as link:
+    with SimProcess("ardupilot", "--tcp", "127.0.0.1:0", udp=False) as sim:
+        with VehicleLink(f"tcp:127.0.0.1:{sim.tcp_port}") as link:
             state = link.connect(timeout_s=10)
             assert state.autopilot == "ArduPilot"
             assert link.wait_for(lambda s: s.heading_deg is not None and s.height_m is not None, 3.0) is not None

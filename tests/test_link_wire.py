@@ -11,7 +11,7 @@ from pymavlink import mavutil
 
 from gcs_voice.errors import LinkError
 from gcs_voice.link import ACCEPTED, REFUSED, Setpoint, VehicleLink
-from gcs_voice.link.setpoints import TYPE_MASK_VELOCITY_YAW
+from gcs_voice.link.setpoints import TYPE_MASK_POSITION_VELOCITY_YAW
 from gcs_voice.settings import load_settings
 from link_peer import PX4_OFFBOARD, ScriptedVehicle
 
@@ -42,7 +42,8 @@ def test_heartbeat_identity_and_telemetry_request(tmp_path: Path) -> None:
         assert (beat.type, beat.get_srcSystem(), beat.get_srcComponent()) == (mavutil.mavlink.MAV_TYPE_GCS, 255, 190)
         asked = {int(m.param1): m.param2 for _, m in vehicle.messages("COMMAND_LONG") if m.command == 511}
         assert asked == {32: pytest.approx(1e5), 30: pytest.approx(1e5), 245: pytest.approx(1e6),
-                         33: pytest.approx(5e5), 132: pytest.approx(1e5)}
+                         33: pytest.approx(5e5), 132: pytest.approx(1e5),
+                         1: pytest.approx(1e6), 193: pytest.approx(1e6)}  # readiness: SYS_STATUS, EKF flags
         # the .tlog holds both directions and reads back with pymavlink
         log = mavutil.mavlink_connection(str(tmp_path / "flight.tlog"))
         senders = set()
@@ -55,7 +56,7 @@ def test_arducopter_arm_retries_until_accepted_and_reports_reasons(tmp_path: Pat
     with ScriptedVehicle("ardupilot", arm_refusals=2) as vehicle:
         link = _link(vehicle, tmp_path)
         try:
-            refused = link.arm(timeout_s=0.1)
+            refused = link.arm(timeout_s=1.5)  # GUIDED first, settled 1 s, then one refused ARM
             assert refused.status == REFUSED and "Arm: Need Position Estimate" in refused.reason
             assert "FAILED" in refused.reason
             result = link.arm(timeout_s=5)
@@ -91,7 +92,7 @@ def test_arducopter_takeoff_then_stream_and_land(tmp_path: Path) -> None:
         said = [e for e in events if e.startswith("vehicle now")]
         assert said == ["vehicle now GUIDED, disarmed", "vehicle now GUIDED, armed", "vehicle now LAND, armed",
                         "vehicle now LAND, disarmed"]
-        assert "vehicle: Arming motors" in events and events[0] == "link up: ArduPilot system 1"
+        assert "vehicle: Arming motors" in events and "link up: ArduPilot system 1" in events
 
 
 def test_arducopter_mode_reset_after_arming_is_caught(tmp_path: Path) -> None:
@@ -143,7 +144,8 @@ def test_px4_offboard_needs_setpoints_first(tmp_path: Path) -> None:
         assert max(gaps) < 0.5  # > 2 Hz
         for _, sp in vehicle.messages("SET_POSITION_TARGET_LOCAL_NED"):
             assert sp.coordinate_frame == mavutil.mavlink.MAV_FRAME_LOCAL_NED
-            assert sp.type_mask == TYPE_MASK_VELOCITY_YAW and math.isfinite(sp.yaw)
+            # the link's own hold: where the vehicle is, position + velocity + yaw (docs/link.md)
+            assert sp.type_mask == TYPE_MASK_POSITION_VELOCITY_YAW and math.isfinite(sp.yaw)
 
 
 def test_px4_arms_in_hold_when_left_in_offboard(tmp_path: Path) -> None:
@@ -210,7 +212,7 @@ def test_link_loss_stops_commanding_and_resumes_with_a_stop(tmp_path: Path) -> N
         assert first.yaw == pytest.approx(math.radians(30.0), abs=1e-6)
         assert after[-1].vx == pytest.approx(0.5 * math.cos(math.radians(30)), abs=1e-6)
         intervals = [t for t, m in vehicle.messages("COMMAND_LONG") if m.command == 511]
-        assert len(intervals) == 10 and intervals[-1] > lost_at  # asked again after the link came back
+        assert len(intervals) == 14 and intervals[-1] > lost_at  # 7 asked again after the link came back
 
 
 def test_garbage_and_hostile_packets_do_not_break_the_link(tmp_path: Path) -> None:
@@ -246,3 +248,17 @@ def test_link_check_command_prints_state_and_commands_nothing(capsys) -> None:
     assert "link ok | PX4 sys 1 | mode LOITER | disarmed | ON_GROUND | height 0.00 m | heading 0.0 deg" in out
     assert main(["--connect", "udpin://0.0.0.0:14540"]) == 2
     assert "MAVSDK" in capsys.readouterr().err
+
+
+def test_arm_when_already_armed_changes_nothing(tmp_path: Path) -> None:
+    """"arm" heard while PX4 flies OFFBOARD must not send it to Hold (the arming mode)."""
+    with ScriptedVehicle("px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        vehicle.armed = True
+        link = _link(vehicle, tmp_path)
+        try:
+            assert link.wait_for(lambda s: s.armed is True, 3.0) is not None
+            result = link.arm(timeout_s=2.0)
+            assert result.ok and result.reason == "already armed"
+        finally:
+            link.close()
+        assert not [m for _, m in vehicle.messages("COMMAND_LONG") if m.command in (176, 400)]

@@ -69,21 +69,17 @@ def test_plot_px4_with_room_and_session_log(tlogs_dir: Path, tmp_path: Path) -> 
 
 
 def test_bundled_room_by_name(tmp_path: Path) -> None:
-    from gcs_voice.session.plot import rooms_dir
-
-    if not (rooms_dir() / "living_room.json").is_file():
-        pytest.skip("sim_bridge rooms not in this checkout yet")
     room = load_room("living_room")
     assert room.bounds is not None and room.bounds.north_max_m > room.bounds.north_min_m
     assert len(room.boxes) >= 1
 
 
 def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
-    with pytest.raises(PlotError, match="no room 'nowhere'"):
+    with pytest.raises(PlotError, match="nowhere.json: no such room file"):
         load_room("nowhere")
     bad = tmp_path / "bad.json"
     bad.write_text("{ not json")
-    with pytest.raises(PlotError, match="not a readable JSON room"):
+    with pytest.raises(PlotError, match="not valid JSON"):
         load_room(str(bad))
     not_tlog = tmp_path / "x.tlog"
     not_tlog.write_bytes(b"hello, this is not MAVLink" * 10)
@@ -92,3 +88,71 @@ def test_bad_inputs_are_one_line(tmp_path: Path) -> None:
     assert proc.returncode == 2
     assert proc.stderr.count("\n") == 1 and proc.stderr.startswith("gcs-voice: error:")
     assert "Traceback" not in proc.stderr
+
+
+def test_unwritable_outputs_are_one_line(tlogs_dir: Path, tmp_path: Path) -> None:
+    blocker = tmp_path / "file"
+    blocker.write_text("not a folder")
+    for cmd in (["plot", str(tlogs_dir / "px4-sih-offboard-velocity.tlog"), "-o", str(blocker / "x.png")],
+                ["demo", "--lang", "en", "--out", str(blocker / "out")]):
+        proc = subprocess.run([sys.executable, "-m", "gcs_voice", *cmd], cwd=REPO, capture_output=True, text=True,
+                              timeout=120)
+        assert proc.returncode == 2, proc.stderr
+        assert proc.stderr.startswith("gcs-voice: error:") and proc.stderr.count("\n") == 1, proc.stderr
+        assert str(blocker) in proc.stderr
+
+
+def _overlaps(boxes: list) -> list[tuple[int, int]]:
+    return [(i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes)) if boxes[i].overlaps(boxes[j])]
+
+
+def test_top_view_reads_where_legs_overlap(tlogs_dir: Path, tmp_path: Path) -> None:
+    """Ten commands and a collision, most of them at the same few spots: numbered labels that neither
+    overlap nor leave their panel, the nose drawn along the track, the collision marked in every panel."""
+    import matplotlib.pyplot as plt
+    from matplotlib.quiver import Quiver
+    from matplotlib.text import Text
+
+    from gcs_voice.session.plot import draw_flight
+
+    tlog = tlogs_dir / "arducopter-sitl-guided-velocity.tlog"
+    flight = read_flight(tlog)
+    marks = commands_from_setpoints(flight)
+    t0 = flight.setpoints[0].t_s
+    records = [{"t": m.t_s, "kind": "command", "msg": "x", "action": m.action} for m in marks]
+    records += [{"t": m.t_s + 0.2, "kind": "command", "msg": "x", "action": "stop"} for m in marks[:4]]
+    hit_t = marks[3].t_s + 1.0
+    records.append({"t": hit_t, "kind": "collision", "msg": "COLLISION: the vehicle hit table", "obstacle": "table"})
+    session = tmp_path / "s.jsonl"
+    session.write_text("\n".join(json.dumps(r) for r in sorted(records, key=lambda r: r["t"])) + "\n")
+    assert t0 <= hit_t
+    fig = draw_flight(tlog, session_log=session)
+    try:
+        fig.canvas.draw()
+        renderer = fig.canvas.get_renderer()
+        top, alt = fig.axes[0], fig.axes[1]
+        # nose arrows along the track
+        noses = [c for c in top.collections if isinstance(c, Quiver)]
+        assert noses and noses[0].N >= len(marks)
+        # top-view labels: every command numbered once, none overlapping another, none outside the panel
+        labels = [t for t in top.texts if t.get_bbox_patch() is not None]
+        text = "\n".join(t.get_text() for t in labels)
+        for n in range(1, len(marks) + 5):
+            assert f"\n{n} " in "\n" + text, n
+        boxes = [Text.get_window_extent(t, renderer) for t in labels]  # the text, not its leader line
+        assert _overlaps(boxes) == []
+        frame = top.get_window_extent(renderer)
+        for box in boxes:
+            assert frame.x0 <= box.x0 and box.x1 <= frame.x1 and frame.y0 <= box.y0 and box.y1 <= frame.y1
+        # the collision: a red cross in the top view, a labelled line in the time panels
+        assert "hit table" in text
+        assert any(line.get_label() == "collision" for line in top.lines)
+        time_labels = [t for t in alt.texts if t.get_rotation() == 90]
+        assert any(t.get_text() == "hit table" for t in time_labels)
+        assert _overlaps([Text.get_window_extent(t, renderer) for t in time_labels]) == []
+        figure_box = fig.bbox
+        for t in time_labels:  # nothing clipped by the figure's edge
+            box = Text.get_window_extent(t, renderer)
+            assert figure_box.y0 <= box.y0 and box.y1 <= figure_box.y1
+    finally:
+        plt.close(fig)

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import re
-import signal
 import socket
 import subprocess
 import sys
@@ -11,16 +9,12 @@ import time
 from pathlib import Path
 
 import pytest
+from conftest import SimProcess
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 REPO = Path(__file__).resolve().parent.parent
-
-
-def _gcs_sim(*args: str, **kwargs) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "sim_bridge", *args], cwd=REPO, stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, **kwargs)
 
 
 def test_help_explains_every_flag() -> None:
@@ -53,24 +47,25 @@ def test_udp_out_and_two_tcp_clients_then_sigterm_closes_the_tlog(tmp_path: Path
     gcs_udp.bind(("127.0.0.1", 0))
     gcs_udp.settimeout(5.0)
     tlog = tmp_path / "flight.tlog"
-    proc = _gcs_sim("--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}", "--tcp", "127.0.0.1:0",
-                    "--tlog", str(tlog), "--room", "open_field")
+    sim = SimProcess("ardupilot", "--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}", "--tcp", "127.0.0.1:0",
+                     "--tlog", str(tlog), udp=False)
     clients = []
     try:
-        ready = proc.stdout.readline()
-        assert ready.startswith("gcs-sim: ArduCopter quad ready"), ready + proc.stderr.read()
-        port = int(re.search(r"tcp 127\.0\.0\.1:(\d+)", ready).group(1))
+        sim.start()
+        assert sim.ready.startswith("gcs-sim: ArduCopter quad ready"), sim.ready
         # the UDP ground station hears the vehicle and answers to its source address
         data, sim_addr = gcs_udp.recvfrom(65535)
         parser = M.MAVLink(None)
         assert parser.parse_buffer(data), "a MAVLink datagram from the sim"
         for _ in range(2):
-            conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{port}", source_system=255, source_component=190)
+            conn = mavutil.mavlink_connection(f"tcp:127.0.0.1:{sim.tcp_port}", source_system=255, source_component=190)
             clients.append(conn)
             hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
             assert hb is not None and hb.autopilot == M.MAV_AUTOPILOT_ARDUPILOTMEGA
         a, b = clients
-        time.sleep(2.7)    # past the 2.5 s boot
+        booted = a.recv_match(type="SYS_STATUS", blocking=True, timeout=30,
+                              condition=f"SYS_STATUS.onboard_control_sensors_health & {M.MAV_SYS_STATUS_PREARM_CHECK}")
+        assert booted is not None, "the pre-arm checks never passed (boot)"
         a.mav.command_long_send(1, 1, M.MAV_CMD_DO_SET_MODE, 0, 1, 4, 0, 0, 0, 0, 0)
         ack = a.recv_match(type="COMMAND_ACK", blocking=True, timeout=5)
         assert ack.command == M.MAV_CMD_DO_SET_MODE and ack.result == M.MAV_RESULT_ACCEPTED
@@ -87,10 +82,9 @@ def test_udp_out_and_two_tcp_clients_then_sigterm_closes_the_tlog(tmp_path: Path
     finally:
         for conn in clients:
             conn.close()
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=20)
+        out = sim.stop()     # SIGTERM
         gcs_udp.close()
-    assert proc.returncode == 0, err
+    assert sim.proc.returncode == 0, sim.stderr
     summary = out.strip().splitlines()[-1]
     assert summary.startswith("gcs-sim: stopped after") and "records" in summary
     dump = subprocess.run(["mavlogdump.py", "--types", "COMMAND_LONG,COMMAND_ACK,HEARTBEAT", str(tlog)],

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 import struct
 
 import pytest
@@ -57,6 +58,9 @@ def test_ardupilot_param_set_changes_behaviour_and_request_data_stream() -> None
         assert len(att) == pytest.approx(20, abs=2)
         assert not g.of_type("COMMAND_ACK")
         assert g.server.params.get("MAV1_POSITION") == 5
+        g.send(g.mav.request_data_stream_encode(1, 1, 0, 65535, 1))   # the MAVn_* parameters range 0-50 Hz
+        g.run(0.1)
+        assert g.server.params.get("MAV1_POSITION") == 50
     finally:
         g.close()
 
@@ -69,6 +73,11 @@ def test_px4_integers_go_bytewise() -> None:
         assert m.param_type == M.MAV_PARAM_TYPE_INT32 and struct.pack("<f", m.param_value) == struct.pack("<i", 0)
         g.send(g.mav.param_request_read_encode(1, 1, b"COM_OF_LOSS_T", -1))
         assert g.wait("PARAM_VALUE", 0.5).param_value == 1.0
+        # the bytes are read as the parameter's own type (REAL32), whatever the message declares: a NaN
+        # declared INT8 is refused, not read as its first byte (0), which would end OFFBOARD at once
+        g.send(g.mav.param_set_encode(1, 1, b"COM_OF_LOSS_T", math.nan, M.MAV_PARAM_TYPE_INT8))
+        assert g.wait("PARAM_VALUE", 0.5).param_value == 1.0
+        assert g.server.params.get("COM_OF_LOSS_T") == 1.0
     finally:
         g.close()
 

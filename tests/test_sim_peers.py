@@ -6,40 +6,13 @@ import asyncio
 import queue
 import shutil
 import re
-import socket
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
 
 import pytest
-from conftest import IN_CI
-
-REPO = Path(__file__).resolve().parent.parent
-
-
-def _free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
-def _start_sim(*args: str) -> tuple[subprocess.Popen, str]:
-    proc = subprocess.Popen([sys.executable, "-m", "sim_bridge", "--room", "open_field", *args], cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready = proc.stdout.readline()
-    assert "ready" in ready, ready + proc.stderr.read()
-    return proc, ready
-
-
-def _stop(proc: subprocess.Popen) -> None:
-    proc.terminate()
-    try:
-        proc.communicate(timeout=15)
-    except subprocess.TimeoutExpired:
-        proc.kill()
-        proc.communicate()
+from conftest import IN_CI, SimProcess
 
 
 async def _mavsdk_flight(port: int) -> dict:
@@ -80,12 +53,8 @@ async def _mavsdk_flight(port: int) -> dict:
 @pytest.mark.slow
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_mavsdk_connects_passes_health_arms_takes_off_and_lands(autopilot: str) -> None:
-    port = _free_udp_port()
-    proc, _ready = _start_sim("--autopilot", autopilot, "--out", f"udp:127.0.0.1:{port}")
-    try:
-        seen = asyncio.run(asyncio.wait_for(_mavsdk_flight(port), 60))
-    finally:
-        _stop(proc)
+    with SimProcess(autopilot) as sim:
+        seen = asyncio.run(asyncio.wait_for(_mavsdk_flight(sim.udp_port), 60))
     health = seen["health"]
     assert health.is_global_position_ok and health.is_home_position_ok and health.is_armable
     assert health.is_local_position_ok and health.is_gyrometer_calibration_ok
@@ -130,9 +99,8 @@ def test_mavproxy_downloads_params_arms_takes_off_and_lands(tmp_path: Path) -> N
         if IN_CI:
             pytest.fail("mavproxy.py is missing in CI (it is in the [test] extra)")
         pytest.skip("mavproxy.py not installed")
-    proc, ready = _start_sim("--tcp", "127.0.0.1:0", "--speedup", "2")
-    port = int(re.search(r"tcp 127\.0\.0\.1:(\d+)", ready).group(1))
-    mavproxy = subprocess.Popen(["mavproxy.py", "--master", f"tcp:127.0.0.1:{port}", "--nowait"], cwd=tmp_path,
+    sim = SimProcess("ardupilot", "--tcp", "127.0.0.1:0", "--speedup", "2", udp=False).start()
+    mavproxy = subprocess.Popen(["mavproxy.py", "--master", f"tcp:127.0.0.1:{sim.tcp_port}", "--nowait"], cwd=tmp_path,
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     console = _Console(mavproxy)
     try:
@@ -153,6 +121,8 @@ def test_mavproxy_downloads_params_arms_takes_off_and_lands(tmp_path: Path) -> N
         assert altitude_mm >= 1800
         console.send("mode land")
         console.expect(r"DISARMED", 20)
+        breaches = [line for line in console.log if "fence breach" in line.lower()]
+        assert not breaches, "SYS_STATUS says the fence is present but unhealthy"
     finally:
         mavproxy.terminate()
         try:
@@ -160,4 +130,4 @@ def test_mavproxy_downloads_params_arms_takes_off_and_lands(tmp_path: Path) -> N
         except subprocess.TimeoutExpired:
             mavproxy.kill()
             mavproxy.wait()
-        _stop(proc)
+        sim.stop()

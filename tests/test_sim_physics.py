@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 import pytest
+from conftest import fly
 
 from sim_bridge.control import DEFAULT_GAINS_PATH, ControlTarget, load_gains, sanitize_target
 from sim_bridge.frames import geodetic_to_ned_m, ned_to_geodetic
@@ -15,14 +16,6 @@ from sim_bridge.world import load_room
 STEP_S = 0.05
 CRUISE_DOWN_M = -1.5
 
-
-def fly(vehicle: Multicopter, seconds: float) -> list:
-    """Step for ``seconds`` and return the states seen after each step."""
-    states = []
-    for _ in range(round(seconds / STEP_S)):
-        vehicle.step(STEP_S)
-        states.append(vehicle.state)
-    return states
 
 
 @pytest.fixture()

@@ -11,6 +11,7 @@ import random
 
 import numpy as np
 import pytest
+from conftest import fly
 
 from sim_bridge.control import ControlTarget
 from sim_bridge.multicopter import PHYSICS_FAULT_EVENT, TIPPED_OVER_EVENT, Multicopter
@@ -27,24 +28,17 @@ def hover_at(room: str, north_m: float, east_m: float, down_m: float = HOVER_DOW
     vehicle = Multicopter(load_room(room))
     vehicle.set_armed(True)
     vehicle.set_target(ControlTarget(pos_ned_m=(0.0, 0.0, down_m)))
-    _fly(vehicle, 2.5)
+    fly(vehicle, 2.5)
     vehicle.set_target(ControlTarget(pos_ned_m=(north_m, east_m, down_m)))
-    _fly(vehicle, 3.5)
+    fly(vehicle, 3.5)
     vehicle.pop_events()
     return vehicle
 
 
-def _fly(vehicle: Multicopter, seconds: float) -> list:
-    states = []
-    for _ in range(round(seconds / STEP_S)):
-        vehicle.step(STEP_S)
-        states.append(vehicle.state)
-    return states
-
 
 def assert_sane_touchdown(vehicle: Multicopter, seconds: float, highest_up_m: float) -> None:
     """Never above the highest commanded point + 1 m, within the speed limits, at rest upright, no NaN."""
-    states = _fly(vehicle, seconds)
+    states = fly(vehicle, seconds)
     for s in states:
         assert np.all(np.isfinite(s.pos_ned_m)) and np.all(np.isfinite(s.vel_ned_m_s))
         assert -s.pos_ned_m[2] < highest_up_m + 1.0, f"climbed to {-s.pos_ned_m[2]:.2f} m at {s.t_s:.2f} s"
@@ -108,7 +102,7 @@ def test_armed_on_the_ground_with_a_big_sideways_target_stays_put(room) -> None:
     start = vehicle.state.pos_ned_m.copy()
     for vd_m_s in (0.0, 2.5):
         vehicle.set_target(ControlTarget(vel_ned_m_s=(5.0, -5.0, vd_m_s), yaw_rate_rad_s=1.5))
-        states = _fly(vehicle, 2.0)
+        states = fly(vehicle, 2.0)
         assert all(s.on_ground for s in states)
         assert np.linalg.norm(vehicle.state.pos_ned_m - start) < 0.02
 
@@ -117,7 +111,7 @@ def test_a_push_no_vehicle_can_fight_ends_in_the_safety_net_not_in_nan() -> None
     """The last net in ``Multicopter``: far past the speed limits while armed -> reset at rest, disarmed, event."""
     vehicle = hover_at("open_field", 0.0, 0.0)
     vehicle.set_disturbance_force_ned_n((50.0, 0.0, 0.0))   # 3.6 g sideways, far past the 30 deg tilt limit
-    states = _fly(vehicle, 3.0)
+    states = fly(vehicle, 3.0)
     assert all(np.all(np.isfinite(s.vel_ned_m_s)) for s in states)
     assert max(math.hypot(*s.vel_ned_m_s[:2]) for s in states) < 3.0 * 5.0 + 1.0
     assert PHYSICS_FAULT_EVENT in [event.obstacle_name for event in vehicle.pop_events()]
@@ -130,7 +124,7 @@ def test_touchdowns_come_to_rest_at_other_physics_rates(physics_hz) -> None:
     vehicle = Multicopter(load_room("open_field"), physics_hz=physics_hz)
     vehicle.set_armed(True)
     vehicle.set_target(ControlTarget(pos_ned_m=(0.0, 0.0, HOVER_DOWN_M)))
-    _fly(vehicle, 4.0)
+    fly(vehicle, 4.0)
     vehicle.set_target(ControlTarget(vel_ned_m_s=(0.0, 5.0, 2.5), yaw_rate_rad_s=1.5))
     assert_sane_touchdown(vehicle, 6.0, 1.5)
 
@@ -160,7 +154,7 @@ def test_random_target_sequences_never_tip_fly_away_or_break(seed) -> None:
                 highest_up_m = max(highest_up_m, -pos[2])
                 target = ControlTarget(pos_ned_m=pos, yaw_rate_rad_s=yaw_rate)
             vehicle.set_target(target)
-            for s in _fly(vehicle, 0.5):
+            for s in fly(vehicle, 0.5):
                 assert np.all(np.isfinite(s.vel_ned_m_s)) and np.all(np.isfinite(s.pos_ned_m))
                 assert -s.pos_ned_m[2] < highest_up_m + 1.0
                 assert math.hypot(*s.vel_ned_m_s[:2]) < MAX_H_SPEED_M_S and abs(s.vel_ned_m_s[2]) < MAX_V_SPEED_M_S

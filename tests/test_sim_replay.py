@@ -285,3 +285,22 @@ def test_px4_heartbeat_messages_rates_and_failsafe_match_real(px4) -> None:
         assert 48.4 <= failsafe_s <= 48.9, "COM_OF_LOSS_T after the last setpoint (47.65 s)"
         assert at(log, "HEARTBEAT", 50.5).custom_mode == 84148224, "RTL without RC"
         assert at(log, "HEARTBEAT", 30.0).custom_mode == 393216 and at(log, "HEARTBEAT", 30.0).base_mode == 145
+
+
+def geofence_bits(timeline) -> set[tuple[bool, bool, bool]]:
+    """SYS_STATUS geofence bit as (present, enabled, healthy), over every SYS_STATUS the vehicle sent."""
+    bit = M.MAV_SYS_STATUS_GEOFENCE
+    return {(bool(m.onboard_control_sensors_present & bit), bool(m.onboard_control_sensors_enabled & bit),
+             bool(m.onboard_control_sensors_health & bit))
+            for _t, m in timeline if m.get_type() == "SYS_STATUS" and m.get_srcSystem() == 1}
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("capture", ["arducopter", "px4"])
+def test_sys_status_geofence_bit_matches_real(capture: str, request: pytest.FixtureRequest) -> None:
+    """ArduCopter reports the fence present and healthy (disabled: FENCE_ENABLE 0); PX4 SIH does not report it.
+
+    With present=1, health=0 MAVProxy prints "fence breach" on every connect.
+    """
+    real, sim = request.getfixturevalue(capture)
+    assert geofence_bits(real) and geofence_bits(sim) == geofence_bits(real)

@@ -139,3 +139,18 @@ def test_land_descends_where_it_stopped_not_toward_an_old_hold_point(room) -> No
     drift_m = math.hypot(*(vehicle.state.pos_ned_m[:2] - start[:2]))
     assert drift_m < 0.8, "brakes, then lands below (a bug flew back to the takeoff spot, 3 m away)"
     assert tilt_deg < 5.0 and not vehicle.armed
+
+
+@pytest.mark.parametrize("mask, arducopter_pos, px4_pos", [
+    (2496, (1.0, 2.0, -1.5), (1.0, 2.0, -1.5)),      # stop / turn: position + velocity + yaw, both
+    (2499, (None, None, None), (None, None, -1.5)),  # horizontal motion holding its height: PX4 only
+    (2500, (None, None, None), (1.0, 2.0, None)),    # vertical motion holding its point: PX4 only
+])
+def test_position_targets_with_velocity_per_personality(mask: int, arducopter_pos, px4_pos) -> None:
+    """gcs-voice's holds (docs/link.md): ArduCopter's GUIDED takes pos+vel but drops the whole position when
+    any x/y/z ignore bit is set; PX4 offboard honours each axis on its own."""
+    msg = _msg(M.MAV_FRAME_LOCAL_NED, mask, vx=0.5, yaw=0.3, x=1.0, y=2.0, z=-1.5)
+    for rules, expected in ((ArduCopter.frame_rules, arducopter_pos), (PX4.frame_rules, px4_pos)):
+        sp = decode_setpoint(msg, rules, 0.0, (0.0, 0.0, -1.0), 0.0, True)
+        assert sp.pos_ned_m == expected
+        assert sp.vel_ned_m_s == (0.5, 0.0, 0.0) and sp.yaw_rad == pytest.approx(0.3)

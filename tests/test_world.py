@@ -8,20 +8,11 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import fly
 
 from sim_bridge.control import ControlTarget
 from sim_bridge.multicopter import Multicopter
 from sim_bridge.world import ROOMS_DIR, RoomError, load_room
-
-STEP_S = 0.05
-
-
-def fly(vehicle: Multicopter, seconds: float) -> list:
-    states = []
-    for _ in range(round(seconds / STEP_S)):
-        vehicle.step(STEP_S)
-        states.append(vehicle.state)
-    return states
 
 
 def take_off(room_name: str, down_m: float = -1.0) -> Multicopter:

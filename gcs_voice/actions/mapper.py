@@ -7,8 +7,13 @@ next one. ``down`` turns itself into ``stop`` at ``floor_m`` above home, or abov
 downward rangefinder sees (a table), whichever is nearer; climbs stop at ``ceiling_m``;
 horizontal motion stops at ``fence_radius_m`` from home (only the outward motion). Unknown height or
 position counts as "at the limit": the mapper does not command what it cannot check. A lost link
-turns the action into ``stop``, so the first setpoint after the link returns is a hold.
-NaN never leaves the mapper.
+turns the action into ``stop``, so the first setpoint after the link returns is a hold. ``halt()``
+(Ctrl-C) makes every later setpoint a stop at once, whatever thread asks next. NaN never leaves the mapper.
+
+Holds (positions carried with the setpoint, see ``actions.setpoint``): ``stop`` holds the point and
+height where it was heard; a turn holds the point it started from; ``go_*`` hold their height;
+``up``/``down`` hold their horizontal point. A hold carries over while the next action keeps that axis
+still (stop then turn keeps the stop's point), so repeated commands do not creep.
 """
 
 from __future__ import annotations
@@ -32,6 +37,7 @@ class VehicleState(Protocol):
 
     north_m: float | None
     east_m: float | None
+    down_m: float | None
     home_north_m: float | None
     home_east_m: float | None
     heading_deg: float | None
@@ -60,6 +66,17 @@ def _finite(value: float | None) -> bool:
     return value is not None and math.isfinite(value)
 
 
+HORIZONTAL_MOTIONS = frozenset({"go_forward", "go_back", "go_right", "go_left"})
+VERTICAL_MOTIONS = frozenset({"up", "down"})
+
+
+def _point(state: VehicleState) -> tuple[float, float] | None:
+    """The vehicle's horizontal position, or None when unknown."""
+    if _finite(state.north_m) and _finite(state.east_m):
+        return float(state.north_m), float(state.east_m)
+    return None
+
+
 class ActionMapper:
     """Holds the current action and heading target; ``setpoint(state)`` is called at the stream rate."""
 
@@ -73,6 +90,22 @@ class ActionMapper:
         self.events: deque[str] = deque(maxlen=32)
         #: apply() runs in the caller's thread, setpoint() in the link's stream thread
         self._lock = threading.RLock()
+        #: the held horizontal point (north, east) and height (down), local NED metres; None = not held
+        self.hold_point: tuple[float, float] | None = None
+        self.hold_down_m: float | None = None
+        #: set by halt(): a plain flag, because a signal handler sets it (no lock may be taken there)
+        self._halted = False
+
+    def halt(self) -> None:
+        """From now on every setpoint is a stop and no motion is taken (Ctrl-C: safe in a signal handler).
+
+        The streamer asks ``setpoint()`` at 10 Hz in its own thread, so the very next setpoint is a stop,
+        not the one after the session loop has noticed."""
+        self._halted = True
+
+    @property
+    def halted(self) -> bool:
+        return self._halted
 
     def _init_yaw(self, state: VehicleState) -> float:
         if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
@@ -84,6 +117,7 @@ class ActionMapper:
         with self._lock:
             self.yaw_target_deg = None
             self._init_yaw(state)
+            self.hold_point = self.hold_down_m = None   # taken where the vehicle is at the next setpoint
 
     def apply(self, action: str, state: VehicleState) -> MappedAction:
         """Make ``action`` the current one (motions) or hand back the flight operation to run."""
@@ -96,17 +130,35 @@ class ActionMapper:
         yaw = self._init_yaw(state)
         if action in FLIGHT_ACTIONS:
             self.action = "stop"
+            self.hold_point = self.hold_down_m = None   # the operation moves the vehicle: take it afresh
             return MappedAction(action, action, yaw)
+        if self._halted:  # after Ctrl-C nothing moves the vehicle again
+            self.action = "stop"
+            return MappedAction("stop", None, yaw)
         if action == "turn_right":
             yaw = self.yaw_target_deg = wrap_deg(yaw + self.settings.turn_step_deg)
         elif action == "turn_left":
             yaw = self.yaw_target_deg = wrap_deg(yaw - self.settings.turn_step_deg)
+        self._update_holds(self.action, action, state)
         self.action = action
         return MappedAction(action, None, yaw)
 
-    def _switch_to_stop(self, reason: str) -> None:
+    def _update_holds(self, previous: str, action: str, state: VehicleState) -> None:
+        """Keep a hold while the axis stays still; take the vehicle's position where an axis stops moving."""
+        if action in HORIZONTAL_MOTIONS:
+            self.hold_point = None
+        elif previous in HORIZONTAL_MOTIONS or self.hold_point is None:
+            self.hold_point = _point(state)
+        if action in VERTICAL_MOTIONS:
+            self.hold_down_m = None
+        elif previous in VERTICAL_MOTIONS or self.hold_down_m is None:
+            self.hold_down_m = state.down_m if _finite(state.down_m) else None
+
+    def _switch_to_stop(self, reason: str, state: VehicleState | None = None) -> None:
         if self.action != "stop":
             self.events.append(f"{self.action} -> stop: {reason}")
+            if state is not None:
+                self._update_holds(self.action, "stop", state)
         self.action = "stop"
 
     def setpoint(self, state: VehicleState) -> Setpoint:
@@ -117,15 +169,17 @@ class ActionMapper:
     def _setpoint(self, state: VehicleState) -> Setpoint:
         yaw = self._init_yaw(state)
         reasons: list[str] = []
+        if self._halted:
+            self._switch_to_stop("halted (Ctrl-C)")
         if state.last_heard_s is not None and not state.link_ok:
-            self._switch_to_stop("link lost")
+            self._switch_to_stop("link lost", state)
         height = state.height_m if _finite(state.height_m) else None
         clearance = state.ground_clearance_m if _finite(state.ground_clearance_m) else None
         above_ground = height if clearance is None or height is None else min(height, clearance)
         if self.action == "down" and (above_ground is None or above_ground <= self.settings.floor_m):
             what = "height unknown" if above_ground is None else (
                 f"floor {self.settings.floor_m:g} m reached" + (" (rangefinder)" if above_ground != height else ""))
-            self._switch_to_stop(what)
+            self._switch_to_stop(what, state)
         h_speed, v_speed = self.settings.horizontal_speed_m_s, self.settings.vertical_speed_m_s
         forward, right, down = {
             "go_forward": (h_speed, 0.0, 0.0), "go_back": (-h_speed, 0.0, 0.0),
@@ -141,7 +195,14 @@ class ActionMapper:
                 forward = right = 0.0
                 reasons.append(reason)
         self.limit_reason = "; ".join(reasons)
-        return Setpoint(forward, right, down, yaw)
+        if self.action not in HORIZONTAL_MOTIONS and self.hold_point is None:
+            self.hold_point = _point(state)   # first setpoint after take-off, or position heard at last
+        if self.action not in VERTICAL_MOTIONS and self.hold_down_m is None and _finite(state.down_m):
+            self.hold_down_m = state.down_m
+        point = self.hold_point if self.action not in HORIZONTAL_MOTIONS else None
+        hold_down = self.hold_down_m if self.action not in VERTICAL_MOTIONS else None
+        return Setpoint(forward, right, down, yaw, point[0] if point else None, point[1] if point else None,
+                        hold_down)
 
     def _fence_reason(self, state: VehicleState, forward_m_s: float, right_m_s: float, yaw_deg: float) -> str:
         if not (_finite(state.north_m) and _finite(state.east_m)):

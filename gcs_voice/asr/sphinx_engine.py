@@ -13,6 +13,8 @@ from __future__ import annotations
 import logging
 from collections.abc import Sequence
 
+import numpy as np
+
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import sphinx_model_dir
 from gcs_voice.asr.settings import engine_settings
@@ -38,7 +40,9 @@ class SphinxRecognizer:
     name = "sphinx"
     languages = LANGUAGES
 
-    def __init__(self, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
+    def __init__(self, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar",
+                 settings: dict | None = None):
+        """``settings`` overrides ``[sphinx]`` of engines.toml (tools/bench_sphinx_real.py sweeps them)."""
         others = sorted({d.language for d in dictionaries} - set(LANGUAGES))
         if others:
             raise ModelError(f"the sphinx engine recognises English only, not {', '.join(others)}: "
@@ -46,7 +50,7 @@ class SphinxRecognizer:
         from pocketsphinx import Config, Decoder
 
         self.mode = mode
-        self.settings = engine_settings("sphinx")
+        self.settings = {**engine_settings("sphinx"), **(settings or {})}
         model_dir = sphinx_model_dir(model)
         config = Config(hmm=str(model_dir / "en-us"), dict=str(model_dir / "cmudict-en-us.dict"),
                         lm=None, loglevel="FATAL", beam=float(self.settings.get("beam", 1e-48)),
@@ -71,9 +75,11 @@ class SphinxRecognizer:
             self.decoder.add_jsgf_string("grammar", self._grammar())
             self.search = "grammar"
         self.decoder.activate_search(self.search)
-        # Every utterance starts from the model's initial cepstral mean: otherwise live CMN carries
-        # over and the previous utterance changes the next result (measured: "stop" after "go up"
-        # heard as "go back").
+        # Every utterance starts from the model's initial cepstral mean and fresh noise statistics
+        # (``start_stream``): otherwise both carry over and the previous utterance changes the next
+        # result (measured: "stop" after "go up" heard as "go back"; the same "up" three times gave
+        # posteriors 0.97, 0.79, 0.79 while only the CMN was reset, because remove_noise kept its
+        # noise estimate).
         self.initial_cmn = self.decoder.get_cmn()
         self._open: SphinxStream | None = None
 
@@ -126,6 +132,8 @@ class SphinxStream(BufferedStream):
         rec, decoder = self._rec, self._rec.decoder
         rec._open = None
         audio_s = len(pcm) / 2 / SAMPLE_RATE
+        pcm = _dither(pcm, int(rec.settings.get("dither_lsb", 0)))
+        decoder.start_stream()  # resets the front end's noise estimate (remove_noise)
         decoder.set_cmn(rec.initial_cmn)
         decoder.start_utt()
         if len(pcm) >= 2:
@@ -154,6 +162,27 @@ class SphinxStream(BufferedStream):
             if len(hypotheses) >= limit:
                 break
         return Recognition(tuple(hypotheses), rec.name, "en", audio_s, extra)
+
+
+def _dither(pcm: bytes, lsb: int, min_run: int = SAMPLE_RATE // 100) -> bytes:
+    """Fill digital silence (runs of at least ``min_run`` exact zeros: espeak-ng, zero padding, a muted
+    microphone) with seeded noise of +-``lsb``. Such silence throws PocketSphinx's noise removal and
+    cepstral mean off: espeak-ng "stop" at 150 wpm (23 % of samples exactly 0) went to the garbage
+    branch; filled, it is "stop" at posterior 1.0. Audio with its own noise is left as it is, and the
+    seed is fixed, so the same utterance still gives the same answer."""
+    samples = np.frombuffer(pcm[: len(pcm) // 2 * 2], "<i2")
+    if lsb <= 0 or samples.size < min_run:
+        return pcm
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], (samples == 0).astype(np.int8), [0]))))
+    starts, ends = edges[0::2], edges[1::2]
+    long_runs = [(a, b) for a, b in zip(starts, ends) if b - a >= min_run]
+    if not long_runs:
+        return pcm
+    out = samples.copy()
+    noise = np.random.default_rng(0).integers(-lsb, lsb + 1, samples.size).astype("<i2")
+    for a, b in long_runs:
+        out[a:b] = noise[a:b]
+    return out.tobytes()
 
 
 def _base_word(word: str) -> str:

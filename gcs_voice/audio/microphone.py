@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 
 __all__ = ["microphone_utterances", "check_microphone"]
 
@@ -31,11 +31,12 @@ def check_microphone(device: int | str | None = None) -> str:
     return str(info.get("name", "input"))
 
 
-def microphone_utterances(talk: threading.Event | None = None,
-                          device: int | str | None = None) -> Iterator[tuple[bytes, float]]:
+def microphone_utterances(talk: threading.Event | None = None, device: int | str | None = None,
+                          on_speech: Callable[[bytes | None], None] | None = None) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
+    ``on_speech`` hears each utterance's audio while it is spoken (see ``segment_utterances``).
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
@@ -50,5 +51,5 @@ def microphone_utterances(talk: threading.Event | None = None,
                 chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 
-    for utterance in segment_utterances(gated()):
+    for utterance in segment_utterances(gated(), on_speech=on_speech):
         yield utterance.pcm, t0[0] + utterance.end_s

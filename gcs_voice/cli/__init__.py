@@ -1,7 +1,8 @@
 """``gcs-voice`` entry point: parses flags and hands over to one command module; no logic here.
 
 ``gcs-voice [fly flags]`` flies (the default command); ``gcs-voice recognize|demo|plot|download ...`` run the
-other commands. User mistakes (GcsVoiceError) end in one line on stderr and exit status 2.
+other commands. User mistakes (GcsVoiceError, and flags argparse refuses) end in one line on stderr and
+exit status 2.
 """
 
 from __future__ import annotations
@@ -24,6 +25,13 @@ COMMANDS: dict[str, tuple[str, str]] = {
 DEFAULT_COMMAND = "fly"
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse, but a refused flag is one line (the usage is one ``--help`` away), like every other mistake."""
+
+    def error(self, message: str):  # type: ignore[override]
+        self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+
 def _load(name: str):
     module_name, _ = COMMANDS[name]
     return importlib.import_module(f"gcs_voice.cli.{module_name}")
@@ -32,7 +40,7 @@ def _load(name: str):
 def build_parser(command: str) -> argparse.ArgumentParser:
     prog = "gcs-voice" if command == DEFAULT_COMMAND else f"gcs-voice {command}"
     others = ", ".join(c for c in COMMANDS if c != DEFAULT_COMMAND)
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog=prog,
         description=COMMANDS[command][1],
         epilog=f"other commands: {others} (gcs-voice COMMAND --help)" if command == DEFAULT_COMMAND else None,
@@ -52,9 +60,9 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(_load(command).run(args) or 0)
     except GcsVoiceError as exc:
         print(f"gcs-voice: error: {exc}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
+        return 2  # = gcs_voice.session.run.USER_ERROR_EXIT, what the session log records
+    except KeyboardInterrupt as exc:  # (SIGTERM / SIGHUP during a session come as one too, with .signum)
         print("gcs-voice: interrupted", file=sys.stderr)
-        return 130
+        return 128 + int(getattr(exc, "signum", 2))
 
 

@@ -36,6 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="use this dictionary file instead of the bundled one (repeatable)")
     parser.add_argument("--segment", action="store_true",
                         help="split each input into utterances at pauses (one line per utterance)")
+    parser.add_argument("--vad", choices=("silero", "energy"), default=None,
+                        help="with --segment: the segmenter (default: gcs_voice/audio/vad.toml's, silero)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
 
 
@@ -90,9 +92,10 @@ def run(args: argparse.Namespace) -> int:
     from gcs_voice.asr.registry import load_recognizer
     from gcs_voice.audio.sources import pcm_to_chunks
     from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
-    from gcs_voice.audio.vad import segment_utterances
+    from gcs_voice.audio.vad import load_vad_settings, segment_utterances
 
     inputs = _read_inputs(args.files)
+    vad = load_vad_settings(method=args.vad) if args.segment else None
     dictionaries = _dictionaries(args)
     matcher = get_matcher(args.matcher or DEFAULT_MATCHER)
     engine = _engine_for(args)
@@ -100,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     stream_lang = None if args.lang == "auto" or args.dictionary else args.lang
 
     for name, pcm in inputs:
-        pieces = ([(u.pcm, u.start_s, u.end_s) for u in segment_utterances(pcm_to_chunks(pcm))]
+        pieces = ([(u.pcm, u.start_s, u.end_s) for u in segment_utterances(pcm_to_chunks(pcm), vad)]
                   if args.segment else [(pcm, None, None)])
         for piece, start_s, end_s in pieces:
             started = time.perf_counter()

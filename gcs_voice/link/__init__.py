@@ -12,6 +12,8 @@ Typical use (what the bridge does)::
         mapper.apply("go_forward", link.state)      # the stream picks it up at the next tick
         link.land()
 
+``arm`` and ``takeoff`` first wait for the vehicle's own readiness signals (``link.readiness``: boot,
+pre-arm bit, EKF position) and keep the arming mode; ``link.readiness()`` says what it still waits for.
 Operations (``set_mode``, ``set_velocity_mode``, ``arm``, ``disarm``, ``takeoff``, ``land``,
 ``request_telemetry``) block and return an :class:`OperationResult` (``ok``, ``status`` accepted /
 refused / timed out, ``reason`` with the vehicle's words); they never raise for a refusal.

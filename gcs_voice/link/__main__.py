@@ -33,11 +33,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--seconds", type=float, default=10.0, help="how long to watch (default 10)")
     parser.add_argument("--wait", type=float, default=30.0, help="seconds to wait for a HEARTBEAT (default 30)")
     args = parser.parse_args(argv)
+    from gcs_voice.link.security import security_from_args
     from gcs_voice.link.vehicle_link import VehicleLink
 
     try:
         with VehicleLink(connection_from_args(args), settings_from_args(args), tlog_path=args.tlog,
-                         on_event=lambda text: print(f"  {text}")) as link:
+                         on_event=lambda text: print(f"  {text}"), security=security_from_args(args)) as link:
             link.connect(timeout_s=args.wait)
             end = time.monotonic() + args.seconds
             while time.monotonic() < end:

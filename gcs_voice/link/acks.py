@@ -40,9 +40,14 @@ class OperationResult:
         return f"{self.operation}: {self.status}" + (f" ({self.reason})" if self.reason else "")
 
 
-@dataclass
+@dataclass(eq=False)
 class AckCollector:
-    """Everything acknowledged or said since the operation started (filled by the link's reader thread)."""
+    """Everything acknowledged or said since the operation started (filled by the link's reader thread).
+
+    Compared by identity: with value equality, ``list.remove`` of one operation's collector could take
+    out another's with equal contents (two operations at once, e.g. take-off and a telemetry request),
+    and the second removal then failed ("take_off failed: list.remove(x): x not in list", seen under load).
+    """
 
     acks: list[CommandAck] = field(default_factory=list)
     texts: list[StatusText] = field(default_factory=list)

@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 from pymavlink.dialects.v20 import common as mavlink
 
 from gcs_voice.link.acks import ACCEPTED, REFUSED, TIMED_OUT, AckCollector, OperationResult, command_name
+from gcs_voice.link.readiness import HOME, READY, SET_MODE, WAIT, Readiness, assess, next_step
 from gcs_voice.link.state import CommandAck, VehicleState
 
 if TYPE_CHECKING:
@@ -26,6 +27,8 @@ MULTICOPTER_TYPES = frozenset({
     mavlink.MAV_TYPE_QUADROTOR, mavlink.MAV_TYPE_HEXAROTOR, mavlink.MAV_TYPE_OCTOROTOR, mavlink.MAV_TYPE_TRICOPTER,
     mavlink.MAV_TYPE_COAXIAL, mavlink.MAV_TYPE_HELICOPTER, mavlink.MAV_TYPE_DODECAROTOR, mavlink.MAV_TYPE_DECAROTOR,
 })
+#: EKF_STATUS_REPORT is in ArduPilot's dialect, not in common
+MSG_ID_EKF_STATUS_REPORT = 193
 #: after a refusal, texts that explain it may still be on their way
 _REASON_GRACE_S = 0.25
 
@@ -118,35 +121,87 @@ class FlightOperations:
         return self.set_mode(state.profile.velocity_mode)
 
     # ---- arming ---------------------------------------------------------------------------------
+    @property
+    def ready_timeout_s(self: "VehicleLink") -> float:
+        """How long ``arm`` waits, by default, for the vehicle to become ready and armed."""
+        return self.settings.arm_timeout_s
+
+    def readiness(self: "VehicleLink") -> Readiness:
+        """What the vehicle still lacks before it can be armed (its own signals; see ``link.readiness``)."""
+        return assess(self.state)
+
     def arm(self: "VehicleLink", timeout_s: float | None = None) -> OperationResult:
-        """ARM, retried every ``arm_retry_s`` until accepted or ``timeout_s`` (refusal texts say why)."""
+        """Arm in the arming mode (GUIDED / Hold) as a ground station would, within ``timeout_s``.
+
+        Loops on ``readiness.next_step``: waits while the vehicle boots or says it is not ready (saying
+        what it waits for, once per change), asks for the arming mode again whenever the HEARTBEAT shows
+        another one, and sends ARM only when the vehicle is ready and the mode has settled. A refused ARM
+        is retried every ``arm_retry_s``; armed in another mode (a race with the vehicle's own mode
+        change) sets the mode again, or disarms when that is refused.
+        """
         state, problem = self._vehicle("arm")
         if problem:
             return problem
-        if state.armed:
+        if state.armed:   # e.g. "arm" heard in flight: leave the mode alone (PX4 flies OFFBOARD, not Hold)
             return OperationResult("arm", ACCEPTED, "already armed")
-        if state.profile.needs_prestream and state.mode == state.profile.velocity_mode and not self.streaming:
-            # PX4 refuses to arm in OFFBOARD without a setpoint stream (and falls back to OFFBOARD by
-            # itself after a failsafe landing): arm in Hold instead
-            step = self.set_mode(state.profile.arm_mode)
-            if not step.ok:
-                return OperationResult("arm", step.status, str(step), step.texts)
-        deadline = time.monotonic() + (self.settings.arm_timeout_s if timeout_s is None else timeout_s)
-        last: OperationResult | None = None
+        rules = self.readiness_rules
+        deadline = time.monotonic() + (self.ready_timeout_s if timeout_s is None else timeout_s)
+        said, last, next_home_request = "", None, time.monotonic()
         while True:
-            ack, collector = self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,))
-            last = self._verdict("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, ack, collector)
-            if last is None:
-                if self.wait_for(lambda s: bool(s.armed), self.settings.mode_confirm_s):
-                    return OperationResult("arm", ACCEPTED, "", tuple(t.text for t in collector.texts))
-                last = OperationResult("arm", TIMED_OUT, "ACK accepted but HEARTBEAT never showed armed")
-            self.on_event(str(last))
-            if not self.state.link_ok:
+            state = self.state
+            if not state.link_ok:
                 return OperationResult("arm", TIMED_OUT, "link lost while arming")
+            if not getattr(self, "_running", True):   # the link is closing (end of session): arm nothing
+                return OperationResult("arm", TIMED_OUT, "link closed while waiting to arm")
+            now = time.monotonic()
+            step = next_step(state, now, rules)
+            if step.action == READY:
+                return OperationResult("arm", ACCEPTED, "" if last is None else "after waiting",
+                                       last.texts if last else ())
+            if step.why != said:
+                said = step.why
+                self.on_event(step.why if step.action == WAIT else f"{step.action}: {step.why}")
+            if step.action == WAIT:
+                if HOME in assess(state).waiting_for and now >= next_home_request:
+                    next_home_request = now + rules.home_request_s
+                    self._send(self._conn.mav.command_long_encode(
+                        state.system_id, state.component_id or 1, mavlink.MAV_CMD_REQUEST_MESSAGE, 0,
+                        float(mavlink.MAVLINK_MSG_ID_HOME_POSITION), 0, 0, 0, 0, 0, 0))
+                left = deadline - now
+                if left <= 0:
+                    return OperationResult("arm", TIMED_OUT, f"the vehicle did not become ready: {step.why}")
+                self.wait_for(lambda s, step=step: next_step(s, time.monotonic(), rules) != step, min(left, 0.5))
+                continue
+            if step.action == SET_MODE:
+                result = self.set_mode(step.mode)
+                if not result.ok:
+                    if state.armed:  # armed outside the arming mode and cannot get out of it: disarm
+                        self.disarm()
+                        return OperationResult("arm", REFUSED, f"armed in {state.mode} and {result}; disarmed",
+                                               result.texts)
+                    last = result
+                    self.on_event(str(result))
+                else:
+                    continue
+            else:  # ARM
+                last = self._arm_once()
+                if last.ok:
+                    continue
+                self.on_event(str(last))
             wait_s = min(self.settings.arm_retry_s, deadline - time.monotonic())
             if wait_s <= 0:
-                return last
+                return last if last is not None else OperationResult("arm", TIMED_OUT, step.why)
             time.sleep(wait_s)
+
+    def _arm_once(self: "VehicleLink") -> OperationResult:
+        """One COMPONENT_ARM_DISARM(1); accepted only when the HEARTBEAT shows armed."""
+        ack, collector = self._command(mavlink.MAV_CMD_COMPONENT_ARM_DISARM, (1.0,))
+        refused = self._verdict("arm", mavlink.MAV_CMD_COMPONENT_ARM_DISARM, ack, collector)
+        if refused is not None:
+            return refused
+        if self.wait_for(lambda s: bool(s.armed), self.settings.mode_confirm_s):
+            return OperationResult("arm", ACCEPTED, "", tuple(t.text for t in collector.texts))
+        return OperationResult("arm", TIMED_OUT, "ACK accepted but HEARTBEAT never showed armed")
 
     def disarm(self: "VehicleLink") -> OperationResult:
         state, problem = self._vehicle("disarm")
@@ -183,10 +238,7 @@ class FlightOperations:
             return OperationResult(operation, REFUSED, "already flying")
         profile = state.profile
         self.stop_stream()
-        step = self.set_mode(profile.arm_mode)
-        if not step.ok:
-            return OperationResult(operation, step.status, str(step), step.texts)
-        step = self.arm()
+        step = self.arm()   # waits for readiness, sets and keeps the arming mode
         if not step.ok:
             return OperationResult(operation, step.status, str(step), step.texts)
         # ArduCopter resets the mode when its initialisation ends (3 s after boot) or from the RC switch:
@@ -258,6 +310,14 @@ class FlightOperations:
         # optional: a downward rangefinder, fast enough for the floor rule (refused or absent is fine)
         self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, (float(mavlink.MAVLINK_MSG_ID_DISTANCE_SENSOR),
                                                              1e6 / self.settings.local_position_ned_hz), retries=0)
+        # the readiness signals (link.readiness): SYS_STATUS's PREARM_CHECK bit, and ArduPilot's EKF flags;
+        # ArduCopter streams neither unasked, PX4 sends SYS_STATUS anyway and has no EKF_STATUS_REPORT
+        readiness = [mavlink.MAVLINK_MSG_ID_SYS_STATUS]
+        if state.profile is not None and not state.profile.needs_prestream:
+            readiness.append(MSG_ID_EKF_STATUS_REPORT)
+        for message_id in readiness:
+            self._command(mavlink.MAV_CMD_SET_MESSAGE_INTERVAL,
+                          (float(message_id), 1e6 / self.settings.extended_sys_state_hz), retries=0)
         self._command(mavlink.MAV_CMD_REQUEST_MESSAGE, (float(mavlink.MAVLINK_MSG_ID_HOME_POSITION),), retries=0)
         self._telemetry_requested = True
         if refused:

@@ -21,6 +21,8 @@ from gcs_voice.link.setpoints import wrap_deg
 __all__ = ["VehicleState", "VehicleStateTracker", "StatusText", "CommandAck", "result_name", "landed_state_name"]
 
 STATUSTEXT_CHUNK_CHARS = 50
+#: how autopilots begin the texts that say why they cannot arm yet (ArduPilot, PX4)
+PREARM_PREFIXES = ("PreArm:", "Arm:", "Preflight Fail:")  # PX4's "Arming denied: ..." is generic
 _CHUNK_STALE_S = 2.0
 
 
@@ -89,6 +91,18 @@ class VehicleState:
     last_heard_s: float | None = None
     link_ok: bool = False
     heartbeats: int = 0
+    #: when the last HEARTBEAT came, and since when it has shown the current custom_mode (tracker clock)
+    heartbeat_s: float | None = None
+    mode_since_s: float | None = None
+    #: SYS_STATUS onboard_control_sensors_present / _enabled / _health bit fields (None: not heard)
+    sensors_present: int | None = None
+    sensors_enabled: int | None = None
+    sensors_health: int | None = None
+    #: EKF_STATUS_REPORT.flags (ArduPilot; None: not heard)
+    ekf_flags: int | None = None
+    #: the last pre-arm complaint the vehicle made ("PreArm: Need Position Estimate", "Arm: ...",
+    #: "Preflight Fail: ..."), cleared when it arms
+    prearm_text: str | None = None
 
     @property
     def autopilot(self) -> str | None:
@@ -199,11 +213,24 @@ class VehicleStateTracker:
             return
         profile = profile_for(msg.autopilot)
         mode = profile.mode_name(msg.base_mode, msg.custom_mode) if profile else f"MODE({msg.custom_mode})"
+        armed = bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED)
+        since = self.state.mode_since_s if self.state.custom_mode == msg.custom_mode else now_s
         self.state = replace(
             self.state, profile=profile, mav_type=msg.type, base_mode=msg.base_mode, custom_mode=msg.custom_mode,
-            mode=mode, armed=bool(msg.base_mode & mavlink.MAV_MODE_FLAG_SAFETY_ARMED),
-            system_status=msg.system_status, heartbeats=self.state.heartbeats + 1,
+            mode=mode, armed=armed, system_status=msg.system_status, heartbeats=self.state.heartbeats + 1,
+            heartbeat_s=now_s, mode_since_s=since if since is not None else now_s,
+            # a complaint made while booting ("Arm: System not initialised") is stale once the boot is over
+            prearm_text=None if armed or (self.state.system_status == mavlink.MAV_STATE_BOOT
+                                          and msg.system_status != mavlink.MAV_STATE_BOOT) else self.state.prearm_text,
         )
+
+    def _sys_status(self, msg: Any, now_s: float) -> None:
+        self.state = replace(self.state, sensors_present=int(msg.onboard_control_sensors_present),
+                             sensors_enabled=int(msg.onboard_control_sensors_enabled),
+                             sensors_health=int(msg.onboard_control_sensors_health))
+
+    def _ekf_status_report(self, msg: Any, now_s: float) -> None:
+        self.state = replace(self.state, ekf_flags=int(msg.flags))
 
     def _extended_sys_state(self, msg: Any, now_s: float) -> None:
         self.state = replace(self.state, landed_state=landed_state_name(int(msg.landed_state)))
@@ -273,4 +300,6 @@ class VehicleStateTracker:
     def _emit(self, now_s: float, severity: int, text: str) -> StatusText:
         status = StatusText(now_s, severity, text.rstrip("\t\r\n "))
         self.texts.append(status)
+        if status.text.startswith(PREARM_PREFIXES) and not self.state.armed:
+            self.state = replace(self.state, prearm_text=status.text)
         return status

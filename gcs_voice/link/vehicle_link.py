@@ -22,6 +22,8 @@ from gcs_voice.link.acks import AckCollector
 from gcs_voice.link.connection import open_connection, parse_connection
 from gcs_voice.link.setpoints import Setpoint, setpoint_fields
 from gcs_voice.link.operations import FlightOperations
+from gcs_voice.link.readiness import load_rules
+from gcs_voice.link.security import LinkSecurity, SecurityHooks
 from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
 from gcs_voice.link.tlog import TlogWriter
 from gcs_voice.settings import Settings, load_settings
@@ -36,8 +38,10 @@ class VehicleLink(FlightOperations):
     """``with VehicleLink("udpin:0.0.0.0:14550") as link: link.wait_vehicle(); link.takeoff(1.5)``."""
 
     def __init__(self, connection: str, settings: Settings | None = None, tlog_path: str | Path | None = None,
-                 on_event: Callable[[str], None] | None = None) -> None:
+                 on_event: Callable[[str], None] | None = None, security: LinkSecurity | None = None) -> None:
         self.spec = parse_connection(connection)
+        self.security = security or LinkSecurity()
+        self._guard: SecurityHooks | None = None
         self.settings = settings or load_settings()
         try:
             self.tlog = TlogWriter(tlog_path) if tlog_path else None
@@ -45,6 +49,7 @@ class VehicleLink(FlightOperations):
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
+        self.readiness_rules = load_rules()
         self._conn: Any = None
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
@@ -65,6 +70,7 @@ class VehicleLink(FlightOperations):
     # ---- lifetime -------------------------------------------------------------------------------
     def open(self) -> "VehicleLink":
         self._conn = open_connection(self.spec, self.settings.gcs_system_id, self.settings.gcs_component_id)
+        self._guard = self.security.attach(self._conn, self.on_event)   # signing, --lock-vehicle
         self._running = True
         self._thread = threading.Thread(target=self._loop, name="vehicle-link", daemon=True)
         self._thread.start()
@@ -79,6 +85,8 @@ class VehicleLink(FlightOperations):
                 self._conn.close()
             except OSError:
                 pass
+        if self._guard is not None:
+            self._guard.close()
         if self.tlog is not None:
             self.tlog.close()
 
@@ -111,7 +119,8 @@ class VehicleLink(FlightOperations):
         """Wait for a flight controller's HEARTBEAT; LinkError if none comes."""
         state = self.wait_for(lambda s: s.heartbeats > 0 and s.link_ok, timeout_s)
         if state is None:
-            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s")
+            why = self._guard.diagnosis() if self._guard is not None else ""
+            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s{why}")
         return state
 
     def connect(self, timeout_s: float = 30.0) -> VehicleState:
@@ -168,6 +177,8 @@ class VehicleLink(FlightOperations):
                 for collector in self._collectors:
                     collector.take(event)
             self._changed.notify_all()
+        if self._guard is not None:
+            self._guard.observe(msg, self.tracker.state.system_id)
         if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
             self.on_event(f"vehicle now {mode_after}, {'armed' if armed_after else 'disarmed'}")
         for event in events:
@@ -192,14 +203,14 @@ class VehicleLink(FlightOperations):
         with self._changed:
             self._changed.notify_all()
 
-    def _send(self, msg: Any) -> None:
+    def _send(self, msg: Any, time_s: float | None = None) -> None:
         with self._send_lock:
             try:
                 self._conn.mav.send(msg)
             except OSError:
                 return
             if self.tlog is not None:
-                self.tlog.write(msg.get_msgbuf())
+                self.tlog.write(msg.get_msgbuf(), time_s)
 
     # ---- setpoint stream ------------------------------------------------------------------------
     def start_stream(self, source: SetpointSource | None = None) -> None:
@@ -226,13 +237,17 @@ class VehicleLink(FlightOperations):
             yaw = self.last_setpoint.yaw_deg
         else:
             yaw = state.heading_deg if state.heading_deg is not None else 0.0
-        return lambda _state: Setpoint.stop(yaw)
+        hold = Setpoint.stop(yaw)
+        if state.north_m is not None and state.east_m is not None and state.down_m is not None:
+            hold = Setpoint(0.0, 0.0, 0.0, yaw, state.north_m, state.east_m, state.down_m)  # here, position held
+        return lambda _state: hold
 
     def _stream_tick(self) -> None:
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
         if source is None or state.system_id is None:
             return
+        decided_s = time.time()  # before the source decides: see send_setpoint
         if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
             try:
                 source(state)
@@ -244,19 +259,26 @@ class VehicleLink(FlightOperations):
         except Exception as exc:  # a broken source must not leave the last velocity running
             self.on_event(f"setpoint source failed ({exc}); holding")
             setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
-        self.send_setpoint(setpoint)
+        self.send_setpoint(setpoint, decided_s)
 
-    def send_setpoint(self, setpoint: Setpoint) -> bool:
+    def send_setpoint(self, setpoint: Setpoint, decided_s: float | None = None) -> bool:
         """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
-        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then."""
+        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then.
+
+        ``decided_s`` (UNIX time read *before* the setpoint was computed) stamps the .tlog record, so the
+        log orders a setpoint by when it was decided: one stamped after a source switched to stop was
+        computed after the switch (Ctrl-C: every setpoint after the halt time is a stop)."""
         state = self.state
         if state.system_id is None or not state.link_ok:
             return False
         if self._stop_first:
-            setpoint, self._stop_first = Setpoint.stop(setpoint.yaw_deg), False
+            if not setpoint.is_stop:
+                setpoint = Setpoint.stop(setpoint.yaw_deg)
+            self._stop_first = False
         boot_ms = int((time.monotonic() - self._boot_s) * 1000)
-        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms)
-        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields))
+        separately = state.profile.position_axes_separately if state.profile else False
+        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms, separately)
+        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields), decided_s)
         self.last_setpoint = setpoint
         self.setpoints_sent += 1
         return True

@@ -9,11 +9,15 @@ Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) a
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
 - motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
   the reason (a setpoint would cut an ArduCopter take-off short near the ground);
-- disarm while flying: refused (a misheard word must not drop the vehicle);
+- disarm while flying: refused (a misheard word must not drop the vehicle); land while disarmed (after
+  a crash): refused, so that it cannot look done;
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
 - floor, ceiling and fence are applied by the mapper on every setpoint; we show its reasons;
-- whatever ends the session (end of script, Ctrl-C, a crash of the voice side) ends in ``shutdown``,
-  which commands a stop and keeps it on the wire before the link closes.
+- whatever ends the session (end of script, Ctrl-C / SIGTERM / SIGHUP, a crash of the voice side, a
+  refused ``--takeoff``) ends in ``shutdown``, which commands a stop and keeps it on the wire before the
+  link closes; a signal halts the mapper in its handler, so the stream turns to stop at once.
+- a session that ends after an accepted "land" waits (``readiness.toml`` [landing] timeout_s) until the
+  vehicle reports itself landed (EXTENDED_SYS_STATE) and disarmed (HEARTBEAT), and says which it saw.
 """
 
 from __future__ import annotations
@@ -25,8 +29,10 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.link.readiness import assess
 from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
@@ -36,6 +42,12 @@ LOOP_PERIOD_S = 0.05
 FINAL_STOP_S = 0.6
 #: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
 ON_GROUND_HEIGHT_M = 0.2
+#: when the link has no readiness rules (a test double): how long to wait for landed and disarmed
+DEFAULT_LANDED_TIMEOUT_S = 40.0
+#: signals that end a session with the vehicle stopped first: Ctrl-C, ``kill`` / a service manager, a
+#: closed terminal. The exit status is 128 + the signal's number (130, 143, 129), as a shell reports it.
+STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+_SIGNAL_WORDS = {"SIGINT": "interrupted (Ctrl-C)", "SIGTERM": "terminated (SIGTERM)", "SIGHUP": "hung up (SIGHUP)"}
 
 
 @dataclass
@@ -59,8 +71,13 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
     if state.north_m_s is not None and state.east_m_s is not None:
         speed = (state.north_m_s ** 2 + state.east_m_s ** 2 + (state.down_m_s or 0.0) ** 2) ** 0.5
     link = "waiting" if state.last_heard_s is None else ("ok" if state.link_ok else "lost")
+    ready = None
+    if state.heartbeats and not state.armed:
+        ready = str(assess(state))
+    heading = round_deg(state.heading_deg, 0) if state.heading_deg is not None else None  # 359.7 is north: 0
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
-            "alt_m": state.height_m, "heading_deg": state.heading_deg, "speed_m_s": speed, "action": action}
+            "alt_m": state.height_m, "heading_deg": heading, "speed_m_s": speed, "action": action,
+            "ready": ready}
 
 
 def _on_ground(state: Any) -> bool:
@@ -81,13 +98,17 @@ class Bridge:
         self.takeoff_m = takeoff_m
         self._requests: queue.Queue[Request] = queue.Queue()
         self._finish = threading.Event()
-        self._interrupted = False  # set by the SIGINT handler (a plain flag: no lock taken in a handler)
+        self._interrupted = False  # set by the signal handler (a plain flag: no lock taken in a handler)
+        self._signum = int(signal.SIGINT)
+        self.halted_t: float | None = None  # UNIX time the SIGINT handler stopped the setpoint source
         self._busy: str | None = None  # flight operation in progress
         self._op_thread: threading.Thread | None = None
         self._link_ok: bool | None = None
+        self._heartbeats_at_loss = 0
         self._limit_reason = ""
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
+        self._landing = False  # an accepted "land" not yet followed by a take-off: the end waits for touchdown
 
     # ---- inputs (any thread) ----------------------------------------------------------------------
     def submit(self, request: Request) -> Request:
@@ -114,12 +135,15 @@ class Bridge:
     def run(self) -> int:
         """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
 
-        Ctrl-C only sets a flag that the loop reads: a KeyboardInterrupt raised at an arbitrary
-        bytecode could leave a lock (the link's, a queue's) held and hang the final stop.
+        Ctrl-C (and SIGTERM, SIGHUP) halts the mapper (the setpoint source: the next setpoint the 10 Hz
+        stream sends is a stop) and sets a flag that the loop reads; nothing else happens in the handler:
+        a KeyboardInterrupt raised at an arbitrary bytecode could leave a lock (the link's, a queue's)
+        held and hang the final stop.
         """
-        previous = None
+        previous: dict[int, Any] = {}
         if threading.current_thread() is threading.main_thread():
-            previous = signal.signal(signal.SIGINT, self._on_sigint)
+            for signum in STOP_SIGNALS:
+                previous[signum] = signal.signal(signum, self._on_sigint)
         try:
             while not self._finish.is_set() and not self._interrupted:
                 try:
@@ -136,30 +160,42 @@ class Bridge:
             self._interrupted = True
         finally:
             if self._interrupted:
-                self.bus.emit("session", "interrupted (Ctrl-C): stopping the vehicle", phase="interrupt")
-                self.exit_code = self.exit_code or 130
+                self.mapper.halt()  # already done by the handler, unless it came as KeyboardInterrupt
+                name = signal.Signals(self._signum).name
+                self.bus.emit("session", f"{_SIGNAL_WORDS.get(name, name)}: stopping the vehicle", phase="interrupt",
+                              signal=name, halted_t=self.halted_t)
+                self.exit_code = self.exit_code or 128 + self._signum
             try:
                 self.shutdown()
             finally:
-                if previous is not None:
-                    signal.signal(signal.SIGINT, previous)
+                for signum, handler in previous.items():
+                    signal.signal(signum, handler)
         return self.exit_code
 
-    def _on_sigint(self, _signum: int, _frame: Any) -> None:
+    def _on_sigint(self, signum: int, _frame: Any) -> None:
+        self.mapper.halt()  # first: every setpoint decided from here on is a stop
+        if self.halted_t is None:
+            self.halted_t = time.time()
+            self._signum = signum
         self._interrupted = True
 
     def _watch(self) -> None:
         """Link transitions and the mapper's automatic changes, said once each."""
         state = self.link.state
         if state.last_heard_s is not None and state.link_ok != self._link_ok:
-            if state.link_ok:
+            if state.link_ok and self._link_ok is False and state.heartbeats <= self._heartbeats_at_loss:
+                pass  # heard again, but no HEARTBEAT yet: the mode we hold is from before the loss (a failsafe
+                #       may have changed it), so "restored" waits for the HEARTBEAT that says the mode now
+            elif state.link_ok:
                 what = "connected" if self._link_ok is None else "restored"
                 self.bus.emit("link", f"link {what}: {state.autopilot or 'unknown autopilot'}, mode {state.mode}",
-                              state=what, autopilot=state.autopilot, system_id=state.system_id)
+                              state=what, autopilot=state.autopilot, system_id=state.system_id, mode=state.mode)
+                self._link_ok = True
             else:
                 self.bus.emit("link", f"link LOST: vehicle silent for {self.link.settings.link_lost_s:g} s; "
                               "nothing is commanded until it returns, then a stop", state="lost")
-            self._link_ok = state.link_ok
+                self._link_ok = False
+                self._heartbeats_at_loss = state.heartbeats
         while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
             self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
         reason = self.mapper.limit_reason
@@ -172,7 +208,7 @@ class Bridge:
     # ---- carrying out one request -------------------------------------------------------------------
     def _refuse(self, request: Request, reason: str) -> None:
         self.bus.emit("refused", f"{request.action} not done: {reason}", action=request.action, reason=reason,
-                      origin=request.origin)
+                      origin=request.origin, utterance_end_t=request.utterance_end_t)
 
     def _serve(self, request: Request) -> None:
         action = request.action
@@ -185,6 +221,9 @@ class Bridge:
             if action == "disarm" and not _on_ground(state):
                 # A misheard "disarm" in the air would drop the vehicle: only on the ground.
                 return self._refuse(request, "the vehicle is flying: say 'land' first")
+            if action == "land" and state.armed is False:
+                # After a crash the autopilot disarms: a "land" then does nothing and must not look done.
+                return self._refuse(request, "the vehicle is disarmed: nothing to land")
             self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
             self._start_operation(request)
             return None
@@ -202,11 +241,12 @@ class Bridge:
             # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
             return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
                                          "say 'take off' to fly by voice again")
+        decided_s = time.time()  # before the mapper decides (see VehicleLink.send_setpoint)
         mapped = self.mapper.apply(action, state)
         if not self.link.streaming:
             self.link.start_stream(self.mapper.setpoint)
         setpoint = self.mapper.setpoint(state)
-        self.link.send_setpoint(setpoint)  # at once, not at the next 10 Hz tick
+        self.link.send_setpoint(setpoint, decided_s)  # at once, not at the next 10 Hz tick
         sent_t = time.time()
         request.accepted = True
         d = request.decision
@@ -214,9 +254,9 @@ class Bridge:
             "command", f"{(repr(d.phrase) + ' -> ') if d and d.phrase else ''}{action}"
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
-            origin=request.origin, yaw_target_deg=round(mapped.yaw_target_deg, 1),
+            origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
             setpoint={"forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
-                      "down_m_s": setpoint.down_m_s, "yaw_deg": round(setpoint.yaw_deg, 2)},
+                      "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
             utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
         )
         return None
@@ -238,10 +278,19 @@ class Bridge:
         try:
             result = self._operation(action)
             ok = bool(getattr(result, "ok", False))
-            self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result))
+            self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result),
+                          utterance_end_t=request.utterance_end_t)
             request.accepted = ok
             if ok and action == "take_off":
                 self.flying_ready.set()
+                self._landing = False
+            elif action == "take_off" and request.origin == "script":
+                # --takeoff (or the demo's scripted take-off) failed: nothing the script says can fly now,
+                # so end at once instead of waiting out the script's ready timeout.
+                self.bus.emit("error", f"take_off failed ({result}): ending the session", what=action)
+                self.finish(1)
+            if ok and action == "land":
+                self._landing = True
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
         finally:
@@ -265,7 +314,12 @@ class Bridge:
 
     # ---- the end ------------------------------------------------------------------------------------
     def shutdown(self) -> None:
-        """Stop the vehicle (hold at the heading target) and keep that on the wire before returning."""
+        """Stop the vehicle (hold where it is) and keep that on the wire; after "land", wait for touchdown."""
+        if self._busy == "land" and self._op_thread is not None:
+            self._op_thread.join(timeout=float(getattr(self.link.settings, "mode_confirm_s", 3.0)) + 5.0)
+        if self._landing and not self._interrupted:
+            self._wait_landed()
+            return
         try:
             state = self.link.state
             in_velocity_mode = state.profile is None or state.mode == state.profile.velocity_mode
@@ -280,3 +334,29 @@ class Bridge:
                 time.sleep(FINAL_STOP_S)
         except Exception as exc:  # the link itself may be what failed
             self.bus.emit("error", f"could not command the final stop: {exc}")
+
+    def _wait_landed(self) -> None:
+        """Wait for EXTENDED_SYS_STATE ON_GROUND and a disarmed HEARTBEAT, within the time limit; say which."""
+        rules = getattr(self.link, "readiness_rules", None)
+        limit_s = getattr(rules, "landed_timeout_s", DEFAULT_LANDED_TIMEOUT_S)
+        start = time.monotonic()
+        self.bus.emit("flight", f"waiting up to {limit_s:g} s for the vehicle to land and disarm", what="landed",
+                      ok=None, detail="waiting")
+        try:
+            done = self.link.wait_for(lambda s: (s.armed is False and _on_ground(s)) or not s.link_ok
+                                      or self._interrupted, limit_s)
+        except Exception as exc:  # the link itself may be what failed
+            self.bus.emit("error", f"could not watch the landing: {exc}")
+            return
+        state = self.link.state
+        took = time.monotonic() - start
+        if done is not None and done.armed is False and _on_ground(done):
+            self.bus.emit("flight", f"landed and disarmed ({took:.1f} s after the session ended)", what="landed",
+                          ok=True, detail=f"landed_state {done.landed_state}, disarmed")
+            return
+        why = ("link lost" if not state.link_ok else "interrupted" if self._interrupted
+               else f"not seen within {limit_s:g} s")
+        self.bus.emit("warning", f"landing not confirmed ({why}): mode {state.mode}, "
+                      f"{'armed' if state.armed else 'disarmed'}, landed state {state.landed_state or '?'}, "
+                      f"height {state.height_m if state.height_m is None else round(state.height_m, 2)} m",
+                      source="bridge")

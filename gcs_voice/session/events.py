@@ -19,12 +19,17 @@ __all__ = ["Event", "EventBus", "KINDS"]
 KINDS: dict[str, str] = {
     "session": "start/end of a session: phase, argv, versions, files",
     "link": "state connected|lost|restored, autopilot, vehicle ids",
+    "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t",
+    "thinking": "an utterance ended and its decision is pending: source, utterance_end_t",
+    "late": "a decision came more than LATE_S after its utterance ended: late_s, action, source",
     "heard": "what the recogniser heard: text, alternatives, engine, lang, audio_s, source, recognize_ms",
     "rejected": "no action: text, phrase (nearest), score, reason, matcher",
     "command": "an action sent to the vehicle: action, phrase, score, origin (voice|key|script), setpoint",
     "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",
     "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
+    "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
+    "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }

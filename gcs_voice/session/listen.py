@@ -1,14 +1,23 @@
 """The voice side of a session: utterances -> recogniser -> matcher -> requests for the bridge.
 
 Runs in its own thread. An utterance is either a recorded WAV from ``--say`` (fed whole, as if just
-spoken) or a segment of the microphone cut by ``gcs_voice.audio.sources``. Every utterance leaves a ``heard``
+spoken) or a segment of the microphone cut by ``gcs_voice.audio.vad``. Every utterance leaves a ``heard``
 event, then either a ``rejected`` event (no action: nothing happens) or a request to the bridge.
+
+A stop is never late: the stop spotter (``gcs_voice.asr.stop_spotter``, a few milliseconds per piece of
+audio) hears each utterance while it arrives, before the main recogniser, and a stop word goes to the
+bridge at once (a ``spotted`` event, then the stop command); the main decision follows when ready and
+may command something else. The microphone is read and spotted in its own thread (``ear``), so a stop
+is heard even while the recogniser is still busy with the utterance before it. Between the end of an
+utterance and its decision a ``thinking`` event is out; a decision more than ``LATE_S`` after the end
+of its utterance is said (a ``late`` event).
 Any exception here is a crash of the voice side: it is reported and the session ends with the
 vehicle stopped (the bridge's ``finish`` leads to its ``shutdown``).
 """
 
 from __future__ import annotations
 
+import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
@@ -20,10 +29,60 @@ from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.session.events import EventBus
 
-__all__ = ["VoicePipeline", "ScriptStep", "read_utterance", "run_script", "run_microphone", "start_voice_thread"]
+__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "read_utterance", "run_script", "run_microphone",
+           "start_voice_thread", "LATE_S"]
 
 CHUNK_BYTES = 3200  # 0.1 s of 16 kHz int16: what a microphone callback would deliver
 BYTES_PER_S = 32_000
+#: a decision later than this after the end of its utterance is said: the pilot may have moved on
+LATE_S = 2.0
+#: how long the voice side waits for the bridge to send a spotted stop before it goes on
+STOP_WAIT_S = 1.0
+
+
+class StopPath:
+    """The stop spotter between the ear and the bridge: a stop word is a stop request at once.
+
+    ``feed`` takes the audio of the utterance in progress (the segmenter's listener, or the recorded
+    chunks) and ``None`` at its end. One utterance at a time, from one thread.
+    """
+
+    def __init__(self, spotter: Any, bus: EventBus) -> None:
+        self.spotter = spotter
+        self.bus = bus
+        self._stream: Any = None
+        self._fired = False
+
+    def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None) -> None:
+        if pcm is None:
+            self.end(bridge, end_t)
+            return
+        if self._stream is None:
+            self._stream, self._fired = self.spotter.start_stream(), False
+        word = self._stream.accept(pcm)
+        if word and not self._fired:
+            self._fired = True
+            self._stop(bridge, word, None, during=True)
+
+    def end(self, bridge: Bridge, end_t: float | None = None) -> str | None:
+        """The utterance is over: stop now if a stop word was in it (and not already sent); the word."""
+        if self._stream is None:
+            return None
+        hit = self._stream.finish()
+        self._stream = None
+        if hit.fired and not self._fired:
+            self._stop(bridge, hit.word, end_t, during=False)
+        self._fired = False
+        return hit.word
+
+    def _stop(self, bridge: Bridge, word: str | None, end_t: float | None, during: bool) -> None:
+        now = time.time()
+        self.bus.emit("spotted", f"stop word {word!r} heard{' (still speaking)' if during else ''}: stopping now",
+                      word=word, utterance_end_t=end_t, spotted_t=now)
+        request = bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
+        # Wait (a few ms) until the bridge has sent it: the main recogniser that runs next may hold the
+        # interpreter for a second (PocketSphinx decodes without releasing the GIL) and starve the bridge.
+        request.done.wait(STOP_WAIT_S)
 
 
 @dataclass(frozen=True)
@@ -48,8 +107,10 @@ class VoicePipeline:
     """One recogniser, one matcher, the dictionaries; ``hear(pcm)`` -> Decision, with events."""
 
     def __init__(self, recognizer: Any, matcher: Any, dictionaries: Sequence[Any], lang: str | None,
-                 bus: EventBus, realtime: bool = True) -> None:
+                 bus: EventBus, realtime: bool = True, stop_spotter: Any = None) -> None:
         self.recognizer = recognizer
+        #: heard before the recogniser (None: no spotter, stops wait for the main decision like any word)
+        self.stop_path = StopPath(stop_spotter, bus) if stop_spotter is not None else None
         #: feed recorded PCM at the pace it was spoken (as a microphone would), so streaming engines
         #: work during the utterance and latency counts from its real end
         self.realtime = realtime
@@ -60,8 +121,13 @@ class VoicePipeline:
         self.bus = bus
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
-             recorded: bool = False) -> Decision:
-        """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set)."""
+             recorded: bool = False, bridge: Bridge | None = None) -> Decision:
+        """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set).
+
+        With a ``bridge``, recorded audio also goes through the stop spotter as it is fed (the
+        microphone's is spotted by the ear thread as it is spoken).
+        """
+        spot = self.stop_path if recorded and bridge is not None else None
         stream = self.recognizer.start_stream(self.lang)
         started = time.monotonic()
         for n, i in enumerate(range(0, len(pcm), CHUNK_BYTES)):
@@ -69,12 +135,18 @@ class VoicePipeline:
                 lag_s = started + n * CHUNK_BYTES / BYTES_PER_S - time.monotonic()
                 if lag_s > 0:
                     time.sleep(lag_s)
+            if spot is not None:
+                spot.feed(bridge, pcm[i:i + CHUNK_BYTES])
             stream.accept(pcm[i:i + CHUNK_BYTES])
         if recorded and self.realtime:
             lag_s = started + len(pcm) / BYTES_PER_S - time.monotonic()
             if lag_s > 0:
                 time.sleep(lag_s)
         end_t = time.time() if recorded or utterance_end_t is None else utterance_end_t
+        if spot is not None:
+            spot.end(bridge, end_t)
+        self.bus.emit("thinking", f"thinking… ({len(pcm) / BYTES_PER_S:.1f} s from {source})", source=source,
+                      utterance_end_t=end_t)
         recognition = stream.finish()
         heard_t = time.time()
         self.last_end_t = end_t
@@ -85,6 +157,11 @@ class VoicePipeline:
                       lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
                       utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1))
         decision = self.matcher.decide(recognition, self.dictionaries)
+        late_s = time.time() - end_t
+        if late_s > LATE_S:
+            self.bus.emit("late", f"late: decided {late_s:.1f} s after the utterance ended "
+                          f"({decision.action or 'no action'}; the recogniser or the CPU is slow)",
+                          late_s=round(late_s, 2), action=decision.action, source=source, utterance_end_t=end_t)
         if not decision.accepted:
             self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}",
                           text=decision.text, phrase=decision.phrase, score=round(decision.score, 3),
@@ -95,7 +172,7 @@ class VoicePipeline:
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
                recorded: bool = False) -> Request | None:
         """Hear one utterance and hand an accepted action to the bridge (None when rejected)."""
-        decision = self.hear(pcm, source, utterance_end_t, recorded)
+        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge)
         if not decision.accepted:
             return None
         return bridge.submit(Request(decision.action, "voice", decision, self.last_end_t, time.time()))
@@ -143,11 +220,39 @@ def _sleep_unless_finished(bridge: Bridge, seconds: float) -> bool:
     return bridge.finished
 
 
-def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]]) -> None:
-    """Serve utterances from a live source (PCM, end time) until the bridge finishes."""
-    for pcm, end_t in utterances:
-        if bridge.finished:
+def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]],
+                   spotted_while_spoken: bool = False) -> None:
+    """Serve utterances from a live source (PCM, end time) until the bridge finishes.
+
+    The source is read in its own thread (``ear``) and each utterance queued for the recogniser, so
+    the next one is heard (and a stop in it spotted) while the recogniser is busy. Unless the source
+    already fed the stop spotter as the words were spoken (``spotted_while_spoken``), the ear spots
+    each whole utterance before queueing it.
+    """
+    heard: queue.Queue[tuple[bytes, float] | BaseException | None] = queue.Queue()
+
+    def ear() -> None:
+        try:
+            for pcm, end_t in utterances:
+                if bridge.finished:
+                    break
+                if pipeline.stop_path is not None and not spotted_while_spoken:
+                    pipeline.stop_path.feed(bridge, pcm)
+                    pipeline.stop_path.end(bridge, end_t)
+                heard.put((pcm, end_t))
+        except BaseException as exc:  # noqa: BLE001 - handed to the voice thread, which ends the session
+            heard.put(exc)
+        finally:
+            heard.put(None)
+
+    threading.Thread(target=ear, name="ear", daemon=True).start()
+    while not bridge.finished:
+        item = heard.get()
+        if item is None:
             break
+        if isinstance(item, BaseException):
+            raise item
+        pcm, end_t = item
         pipeline.submit(bridge, pcm, "microphone", end_t)
 
 

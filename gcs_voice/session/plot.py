@@ -2,7 +2,8 @@
 
 Commands come from the session log (``.jsonl`` written beside the tlog by ``gcs-voice``) when there is
 one, otherwise from the setpoints found in the tlog itself, so a tlog from any ground station plots.
-Rooms are the simulator's JSON data files, read as data (the bridge never imports ``sim_bridge``).
+Rooms are JSON data files read by ``rooms``, the one room reader the simulator uses too (the bridge never
+imports ``sim_bridge``).
 """
 
 from __future__ import annotations
@@ -11,11 +12,20 @@ import json
 from dataclasses import dataclass
 from pathlib import Path
 
+import rooms
 from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.collisions import parse_hit
 from gcs_voice.session.flight_log import Flight, read_flight, setpoint_action
 
-__all__ = ["Room", "Box", "CommandMark", "load_room", "rooms_dir", "commands_from_session_log",
-           "commands_from_setpoints", "plot_flight"]
+__all__ = ["Room", "Box", "CommandMark", "load_room", "commands_from_session_log",
+           "commands_from_setpoints", "collisions_for_plot", "plot_flight", "draw_flight"]
+
+#: nose arrows along the top-view track: one per this fraction of the drawn area's size travelled
+NOSE_STEP_FRACTION = 0.06
+#: and this long, as a fraction of the drawn area's size
+NOSE_LENGTH_FRACTION = 0.035
+#: command marks closer than this fraction of the drawn area's size share one label
+GROUP_FRACTION = 0.04
 
 #: Colour per action, so the same command looks the same in every panel and every plot.
 ACTION_COLOURS = {
@@ -58,48 +68,16 @@ class CommandMark:
     label: str
 
 
-def rooms_dir() -> Path:
-    """The simulator's room files, found beside this package (source tree or installed wheel)."""
-    return Path(__file__).resolve().parents[2] / "sim_bridge" / "rooms"
-
-
-def _box(raw: object, where: str, default_name: str) -> Box:
-    if not isinstance(raw, dict):
-        raise PlotError(f"{where}: a box must be a JSON object")
-    ext = raw.get("extents")
-    if ext is None and {"min", "max"} <= set(raw):
-        ext = [raw["min"][0], raw["max"][0], raw["min"][1], raw["max"][1]]
-    if not isinstance(ext, list) or len(ext) < 4 or not all(isinstance(v, (int, float)) for v in ext[:4]):
-        raise PlotError(f"{where}: box needs 'extents' [north_min, north_max, east_min, east_max, ...] in metres")
-    return Box(str(raw.get("name", default_name)), float(ext[0]), float(ext[1]), float(ext[2]), float(ext[3]))
-
-
 def load_room(name_or_path: str) -> Room:
-    """A room by bundled name (``sim_bridge/rooms/NAME.json``) or by file path; bad files raise PlotError."""
-    path = Path(name_or_path)
-    if not path.is_file():
-        candidate = rooms_dir() / f"{name_or_path}.json"
-        if not candidate.is_file():
-            known = ", ".join(sorted(p.stem for p in rooms_dir().glob("*.json"))) or "none found"
-            raise PlotError(f"no room {name_or_path!r}: not a file, not a bundled room (bundled: {known})")
-        path = candidate
+    """A room by bundled name or file path, read by the one room reader (``rooms``); bad files raise PlotError."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise PlotError(f"{path}: not a readable JSON room: {exc}") from None
-    if not isinstance(data, dict):
-        raise PlotError(f"{path}: a room must be a JSON object")
-    bounds = _box(data["bounds"], f"{path} bounds", "walls") if "bounds" in data else None
-    raw_boxes = data.get("blocks", data.get("boxes", data.get("obstacles", [])))
-    if not isinstance(raw_boxes, list):
-        raise PlotError(f"{path}: 'blocks' must be a list of boxes")
-    boxes = tuple(_box(b, f"{path} block {i}", f"box {i}") for i, b in enumerate(raw_boxes))
-    start = data.get("start", {}).get("pos_m", [0.0, 0.0]) if isinstance(data.get("start"), dict) else [0.0, 0.0]
-    try:
-        start_north_m, start_east_m = float(start[0]), float(start[1])
-    except (TypeError, ValueError, IndexError):
-        raise PlotError(f"{path}: 'start.pos_m' must be [north_m, east_m]") from None
-    return Room(str(data.get("name", path.stem)), bounds, boxes, start_north_m, start_east_m)
+        room = rooms.load_room(name_or_path)
+    except rooms.RoomError as exc:
+        raise PlotError(str(exc)) from None
+    (n_min, e_min, _), (n_max, e_max, _) = room.bounds_min_m, room.bounds_max_m
+    bounds = Box("walls" if room.walls else "bounds", n_min, n_max, e_min, e_max)
+    boxes = tuple(Box(b.name, b.min_m[0], b.max_m[0], b.min_m[1], b.max_m[1]) for b in room.blocks)
+    return Room(room.name, bounds, boxes, room.start_xy_m[0], room.start_xy_m[1])
 
 
 def commands_from_session_log(path: str | Path) -> list[CommandMark]:
@@ -169,9 +147,190 @@ def commands_from_setpoints(flight: Flight) -> list[CommandMark]:
     return marks
 
 
+def collisions_for_plot(flight: Flight, session_log: str | Path | None) -> list[tuple[float, str]]:
+    """(time, what was hit): the session log's collision events, else the tlog's "SIM Hit" texts that are
+    not the ground (without the log, a touchdown cannot be told from a crash)."""
+    if session_log is not None:
+        out = []
+        try:
+            lines = Path(session_log).read_text(encoding="utf-8").splitlines()
+        except (OSError, UnicodeDecodeError):
+            lines = []
+        for line in lines:
+            try:
+                event = json.loads(line)
+            except json.JSONDecodeError:
+                continue
+            if isinstance(event, dict) and event.get("kind") == "collision":
+                out.append((float(event["t"]), str(event.get("obstacle") or "?")))
+        return out
+    hits = [(t, parse_hit(text)) for t, text in flight.statustexts]
+    return [(t, hit.obstacle) for t, hit in hits if hit is not None and hit.obstacle.lower() != "ground"]
+
+
+def _span(ax) -> float:
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    return max(abs(x1 - x0), abs(y1 - y0), 1e-6)
+
+
+def _draw_noses(ax, flight: Flight, marks: list[CommandMark], off_n: float, off_e: float) -> None:
+    """The vehicle's nose (heading) as arrows along the track, and after each command, so overlapping legs
+    still read: which way it faced and which way it went."""
+    import math
+
+    tr = flight.track
+    span = _span(ax)
+    step, length = NOSE_STEP_FRACTION * span, NOSE_LENGTH_FRACTION * span
+    times, travelled = [tr.t_s[0]], 0.0
+    for i in range(1, len(tr.t_s)):
+        travelled += math.hypot(tr.north_m[i] - tr.north_m[i - 1], tr.east_m[i] - tr.east_m[i - 1])
+        if travelled >= step:
+            times.append(tr.t_s[i])
+            travelled = 0.0
+    ends = [m.t_s for m in marks[1:]] + [tr.t_s[-1]]
+    times += [min(end, tr.t_s[-1]) - 0.05 for end in ends]  # the heading each command left the vehicle in
+    xs, ys, us, vs, cs = [], [], [], [], []
+    for t in sorted(times):
+        pos, heading = flight.position_at(t), flight.heading_at(t)
+        if pos is None or heading is None:
+            continue
+        xs.append(pos[1] + off_e)
+        ys.append(pos[0] + off_n)
+        us.append(length * math.sin(math.radians(heading)))
+        vs.append(length * math.cos(math.radians(heading)))
+        cs.append(t - flight.t0_s)
+    if xs:
+        # Coloured by time, so two legs over the same ground tell apart (early dark, late yellow).
+        arrows = ax.quiver(xs, ys, us, vs, cs, cmap="viridis", angles="xy", scale_units="xy", scale=1.0,
+                           width=0.005, headwidth=4, headlength=5, zorder=4, label="nose (heading)")
+        arrows.set_clim(0.0, max(tr.t_s[-1] - flight.t0_s, 1.0))  # the time axis of the other panels
+        bar = ax.figure.colorbar(arrows, ax=ax, orientation="horizontal", fraction=0.04, pad=0.09, aspect=40)
+        bar.set_label("nose arrows: time (s)", fontsize=8)
+        bar.ax.tick_params(labelsize=7)
+
+
+def _draw_numbered_marks(fig, ax, flight: Flight, marks: list[CommandMark], hits: list[tuple[float, str]],
+                         off_n: float, off_e: float) -> None:
+    """Commands as numbered triangles (numbers as on the time panels) and collisions as red crosses; marks at
+    the same spot share one label, and labels are moved until none overlaps another or leaves the axes."""
+    span = _span(ax)
+    points: list[tuple[float, float, str, str]] = []  # x, y, text, colour
+    for n, mark in enumerate(marks, 1):
+        pos = flight.position_at(mark.t_s)
+        if pos is not None:
+            xy = (pos[1] + off_e, pos[0] + off_n)
+            ax.plot(*xy, "^", color=ACTION_COLOURS.get(mark.action, "k"), ms=7, zorder=5)
+            points.append((xy[0], xy[1], f"{n} {mark.action}", "black"))
+    for i, (t, what) in enumerate(hits):
+        pos = flight.position_at(t)
+        if pos is not None:
+            xy = (pos[1] + off_e, pos[0] + off_n)
+            ax.plot(*xy, "X", color="red", ms=11, mec="darkred", zorder=6, label="collision" if i == 0 else None)
+            points.append((xy[0], xy[1], f"hit {what}", "red"))
+    groups: list[list[tuple[float, float, str, str]]] = []
+    for point in points:
+        near = next((g for g in groups if abs(g[0][0] - point[0]) < GROUP_FRACTION * span
+                     and abs(g[0][1] - point[1]) < GROUP_FRACTION * span and g[0][3] == point[3]), None)
+        if near is None:
+            groups.append([point])
+        else:
+            near.append(point)
+    (x0, x1) = ax.get_xlim()
+    labels = []
+    for group in groups:
+        x, y = group[0][0], group[0][1]
+        text = "\n".join(p[2] for p in group)
+        colour = "red" if any(p[3] == "red" for p in group) else "black"
+        label = ax.annotate(text, (x, y), xytext=(14, 0), textcoords="offset points", ha="left", va="center",
+                            fontsize=7, color=colour, zorder=7, annotation_clip=False,
+                            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "lightgray", "alpha": 0.85},
+                            arrowprops={"arrowstyle": "-", "color": "gray", "lw": 0.6})
+        label.set_in_layout(False)  # kept inside the panel by _place; tight_layout must not make room for it
+        labels.append((label, x < (x0 + x1) / 2))  # first try the side with more room
+    _place(fig, ax, labels)
+
+
+def _text_box(label, renderer):
+    """A label's own box (its rounded frame included), without the leader line that Annotation adds."""
+    from matplotlib.text import Text
+
+    label.update_positions(renderer)  # where xyann puts it now (Text's own extent does not recompute that)
+    return Text.get_window_extent(label, renderer).padded(3.0)
+
+
+def _place(fig, ax, labels: list) -> None:
+    """Put each label at the nearest offset (right or left of its point, then further up or down) where it
+    overlaps no label placed before nor any labelled mark, and stays inside the axes; labels nearer the top
+    are placed first."""
+    from matplotlib.transforms import Bbox
+
+    renderer = fig.canvas.get_renderer()
+    frame = ax.get_window_extent(renderer)
+    # the marks themselves (a collision's cross, a command's triangle) must stay visible too
+    placed: list = [Bbox.from_bounds(*(ax.transData.transform(label.xy) - 7.0), 14.0, 14.0) for label, _ in labels]
+    mine = {id(label) for label, _ in labels}
+    placed += [t.get_window_extent(renderer) for t in ax.texts if id(t) not in mine]  # the room's furniture names
+    candidates = [(side, 12.0 * i * sign) for i in range(0, 40) for sign in ((1, -1) if i else (1,))
+                  for side in (0, 1)]
+    order = sorted(labels, key=lambda item: -item[0].xy[1])
+    for label, right_first in order:
+        best, best_cost = None, None
+        for side, dy in candidates:
+            right = right_first if side == 0 else not right_first
+            label.set_horizontalalignment("left" if right else "right")
+            label.xyann = (14.0 if right else -14.0, dy)
+            box = _text_box(label, renderer)
+            outside = (max(0.0, frame.x0 - box.x0) + max(0.0, box.x1 - frame.x1)
+                       + max(0.0, frame.y0 - box.y0) + max(0.0, box.y1 - frame.y1))
+            overlap = sum(max(0.0, min(box.x1, b.x1) - max(box.x0, b.x0)) * max(0.0, min(box.y1, b.y1) - max(box.y0, b.y0))
+                          for b in placed)
+            cost = (outside * 1000 + overlap, abs(dy))
+            if best_cost is None or cost < best_cost:
+                best, best_cost = (right, dy), cost
+            if outside == 0 and overlap == 0:
+                break
+        right, dy = best
+        label.set_horizontalalignment("left" if right else "right")
+        label.xyann = (14.0 if right else -14.0, dy)
+        placed.append(_text_box(label, renderer))
+
+
+def _spread(fig, labels: list) -> None:
+    """Move the time panels' command labels right (by their offset in points) until no two overlap."""
+    renderer = fig.canvas.get_renderer()
+    points_per_px = 72.0 / fig.dpi
+    placed = []
+    for label in sorted(labels, key=lambda a: _text_box(a, renderer).x0):
+        for _ in range(60):
+            box = _text_box(label, renderer)
+            clash = next((b for b in placed if box.overlaps(b)), None)
+            if clash is None:
+                break
+            ox, oy = label.xyann
+            label.xyann = (ox + (clash.x1 - box.x0 + 1) * points_per_px, oy)
+        placed.append(_text_box(label, renderer))
+
+
 def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
                 session_log: str | Path | None = None, title: str | None = None) -> Path:
     """Render the flight in ``tlog`` to ``out_png`` and return its path."""
+    import matplotlib.pyplot as plt
+
+    fig = draw_flight(tlog, room, session_log, title)
+    out_png = Path(out_png)
+    try:
+        out_png.parent.mkdir(parents=True, exist_ok=True)
+        fig.savefig(out_png)
+    except OSError as exc:
+        raise PlotError(f"cannot write {out_png}: {exc.strerror or exc}") from None
+    finally:
+        plt.close(fig)
+    return out_png
+
+
+def draw_flight(tlog: str | Path, room: Room | None = None, session_log: str | Path | None = None,
+                title: str | None = None):
+    """The figure of ``plot_flight`` (a matplotlib Figure; the caller closes it): axes 0 is the top view."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -205,18 +364,13 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
                                     box.north_max_m - box.north_min_m, fc="lightgray", ec="gray"))
             top.annotate(box.name, ((box.east_min_m + box.east_max_m) / 2, (box.north_min_m + box.north_max_m) / 2),
                          ha="center", va="center", fontsize=7, color="dimgray")
+    hits = collisions_for_plot(flight, session_log)
     if tr.t_s:
         east = [e + off_e for e in tr.east_m]
         north = [n + off_n for n in tr.north_m]
         top.plot(east, north, "-", color="tab:blue", lw=1.5, label="track")
         top.plot(east[0], north[0], "o", color="green", label="start")
         top.plot(east[-1], north[-1], "s", color="red", label="end")
-        for mark in marks:
-            pos = flight.position_at(mark.t_s)
-            if pos is not None:
-                xy = (pos[1] + off_e, pos[0] + off_n)
-                top.plot(*xy, "^", color=ACTION_COLOURS.get(mark.action, "k"), ms=7)
-                top.annotate(mark.action, xy, textcoords="offset points", xytext=(4, 4), fontsize=7)
     zoomed = False
     if tr.t_s and room is not None and room.bounds is not None:
         # A big room (an open field) would shrink the track to a dot: frame the track instead.
@@ -233,8 +387,13 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
     top.set_ylabel(f"north (m, {frame})")
     top.set_aspect("equal", adjustable="box" if zoomed else "datalim")
     top.grid(alpha=0.3)
-    top.legend(loc="best", fontsize=8)
-    top.set_title(f"top view{' - room ' + room.name if room else ''}")
+    if tr.t_s:
+        _draw_noses(top, flight, marks, off_n, off_e)
+        _draw_numbered_marks(fig, top, flight, marks, hits, off_n, off_e)
+    # Above the panel, not in it: labels are placed around the track and must not hide under the legend.
+    top.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=5, fontsize=7, frameon=False,
+               handlelength=1.5, columnspacing=1.0)
+    top.set_title(f"top view{' - room ' + room.name if room else ''}", pad=24)
 
     if tr.t_s:
         alt.plot([t - t0 for t in tr.t_s], tr.alt_m, color="tab:blue")
@@ -252,12 +411,23 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
     hdg.set_ylabel("heading (deg, unwrapped)")
     hdg.set_xlabel("time (s)")
     hdg.grid(alpha=0.3)
-    for mark in marks:
+    time_labels = []
+    for n, mark in enumerate(marks, 1):
         colour = ACTION_COLOURS.get(mark.action, "k")
         for ax in (alt, hdg):
             ax.axvline(mark.t_s - t0, color=colour, lw=0.8, ls="--", alpha=0.7)
-        alt.annotate(mark.action, (mark.t_s - t0, 1.0), xycoords=("data", "axes fraction"), rotation=90,
-                     va="top", ha="right", fontsize=7, color=colour)
+        time_labels.append(alt.annotate(f"{n} {mark.action}", (mark.t_s - t0, 1.0), xycoords=("data", "axes fraction"),
+                                        xytext=(0, 3), textcoords="offset points", rotation=90, va="bottom",
+                                        ha="center", fontsize=7, color=colour, annotation_clip=False))
+    for i, (t, what) in enumerate(hits):
+        for ax in (alt, hdg):
+            ax.axvline(t - t0, color="red", lw=1.6, label="collision" if i == 0 and ax is hdg else None)
+        time_labels.append(alt.annotate(f"hit {what}", (t - t0, 1.0), xycoords=("data", "axes fraction"),
+                                        xytext=(0, 3), textcoords="offset points", rotation=90, va="bottom",
+                                        ha="center", fontsize=7, color="red", fontweight="bold",
+                                        annotation_clip=False))
+    if hits:
+        hdg.legend(loc="lower right", fontsize=8)
     t_end = max(tr.t_s[-1] if tr.t_s else t0, flight.heading_t_s[-1] if flight.heading_t_s else t0)
     for i, (lost, back) in enumerate(link_losses_from_session_log(session_log) if session_log else []):
         for ax in (alt, hdg):
@@ -274,8 +444,9 @@ def plot_flight(tlog: str | Path, out_png: str | Path, room: Room | None = None,
     source = "session log" if session_log else "setpoints in the tlog"
     fig.suptitle(title or f"{Path(tlog).name} (commands from the {source})", fontsize=11)
     fig.tight_layout()
-    out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png)
-    plt.close(fig)
-    return out_png
+    _spread(fig, time_labels)  # commands close in time: side by side, not on top of each other
+    fig.tight_layout()
+    if tr.t_s:  # tight_layout moved the axes: place the top view's labels again where they fit now
+        top.apply_aspect()  # ("datalim" moves the limits at draw time: settle them first)
+        _place(fig, top, [(a, a.get_horizontalalignment() == "left") for a in top.texts if a.get_bbox_patch()])
+    return fig

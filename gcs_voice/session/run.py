@@ -14,12 +14,19 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.bridge import STOP_SIGNALS, Bridge, Request
+from gcs_voice.session.collisions import CollisionWatch
 from gcs_voice.session.events import EventBus
 from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
 from gcs_voice.session.session_log import SessionLog, session_paths
 
-__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice"]
+__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice", "USER_ERROR_EXIT"]
+
+#: exit status of a session ended by a user mistake or a missing vehicle (GcsVoiceError), as the CLI exits
+USER_ERROR_EXIT = 2
+#: exit status of a session in which the vehicle hit something (and nothing worse happened)
+COLLISION_EXIT = 1
 
 
 @dataclass
@@ -49,6 +56,12 @@ class SessionConfig:
     subscribers: Sequence[Callable[[Any], None]] = ()
     #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
     setting_overrides: dict[str, float | None] = field(default_factory=dict)
+    #: --signing-key, --require-signed, --lock-vehicle (a gcs_voice.link.security.LinkSecurity; None = none)
+    link_security: Any = None
+    #: how the user wrote each override (its flag), for error messages
+    setting_names: dict[str, str] = field(default_factory=dict)
+    #: run the stop spotter before the main recogniser (a stop word stops at once)
+    stop_spotter: bool = True
 
 
 @dataclass
@@ -77,6 +90,20 @@ def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: s
     return recognizer, matcher, dictionaries, stream_lang
 
 
+def _stop_spotter(config: SessionConfig, dictionaries: Sequence[Any], bus: Any) -> Any:
+    """The stop spotter for the session's languages, or None (said once) when off or unavailable."""
+    if not config.stop_spotter:
+        return None
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.errors import GcsVoiceError
+
+    try:
+        return load_stop_spotter(sorted({d.language for d in dictionaries}))
+    except (GcsVoiceError, ImportError) as exc:
+        bus.emit("warning", f"no stop spotter ({exc}): a stop waits for the main recogniser like any word")
+        return None
+
+
 def _script(config: SessionConfig) -> list[ScriptStep]:
     if config.script is not None:
         return list(config.script)
@@ -84,13 +111,45 @@ def _script(config: SessionConfig) -> list[ScriptStep]:
     return [ScriptStep(p, config.gap_s if i < len(paths) - 1 else config.hold_s) for i, p in enumerate(paths)]
 
 
+class _Terminated(KeyboardInterrupt):
+    """SIGTERM / SIGHUP before the flight loop: unwinds like Ctrl-C (logs closed, link closed)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signum)
+        self.signum = signum
+
+
+def _raise_terminated(signum: int, _frame: Any) -> None:
+    raise _Terminated(signum)
+
+
 def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None = None) -> SessionResult:
     """Fly one session to its end; the vehicle is stopped before this returns, whatever happened."""
+    import signal
+
+    previous: dict[int, Any] = {}
+    if threading.current_thread() is threading.main_thread():
+        # Before the flight loop (which stops the vehicle on these itself), kill / a closed terminal must
+        # still close the logs; the default action would end the process on the spot.
+        for signum in (s for s in STOP_SIGNALS if s != signal.SIGINT):
+            previous[signum] = signal.signal(signum, _raise_terminated)
+    try:
+        return _run_session(config, voice)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+
+
+def _run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None) -> SessionResult:
     from gcs_voice.actions.mapper import ActionMapper
     from gcs_voice.link import VehicleLink
     from gcs_voice.settings import load_settings
 
-    settings = load_settings(config.settings_path, **config.setting_overrides)
+    overrides = dict(config.setting_overrides)
+    if config.takeoff_m is not None:  # take off at once, to this height: checked like the setting
+        overrides["takeoff_altitude_m"] = config.takeoff_m
+    settings = load_settings(config.settings_path, names={"takeoff_altitude_m": "--takeoff", **config.setting_names},
+                             **overrides)
     recognizer, matcher, dictionaries, stream_lang = voice or load_voice(
         config.lang, config.engine, config.model, config.matcher, config.dictionaries)
     steps = _script(config)
@@ -103,31 +162,39 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
     tlog, jsonl = session_paths(config.log_dir, config.log_name)
 
     bus = EventBus()
-    log = SessionLog(jsonl)
-    bus.subscribe(log)
-    for subscriber in config.subscribers:
-        bus.subscribe(subscriber)
+    link = None
     view = None
-    if config.headless and not config.quiet:
-        from gcs_voice.session.headless import HeadlessPrinter
-
-        bus.subscribe(HeadlessPrinter(as_json=config.as_json))
+    watch = CollisionWatch(bus, settings.hard_landing_m_s, mode=lambda: link.state.mode if link else None)
+    exit_code = 1
+    error: str | None = None
 
     def link_said(line: str) -> None:
-        if line.startswith("vehicle: "):
+        if line.startswith(("waiting for: ", "set mode: ", "arm: ready")):  # link.readiness, while arming
+            waiting = line.removeprefix("waiting for: ").split(" (vehicle: ")[0] if line.startswith("waiting") else ""
+            bus.emit("ready", line, waiting_for=waiting)
+        elif line.startswith("vehicle: "):
             bus.emit("vehicle", line, text=line.removeprefix("vehicle: "))
         elif not line.startswith("link "):  # link transitions are said by the bridge, once
             bus.emit("warning", line, source="link")
 
-    bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
-             argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
-             engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-    link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said)
-    exit_code = 1
-    try:
+    log = SessionLog(jsonl)
+    try:  # from the moment a log file exists: whatever happens, the finally below closes (or removes) it
+        bus.subscribe(log)
+        for subscriber in config.subscribers:
+            bus.subscribe(subscriber)
+        if config.headless and not config.quiet:
+            from gcs_voice.session.headless import HeadlessPrinter
+
+            bus.subscribe(HeadlessPrinter(as_json=config.as_json))
+        bus.subscribe(watch)  # after the printers: a hit is printed after the vehicle's text that says it
+        bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
+                 argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
+                 engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
+        link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said,
+                           security=config.link_security)
         link.open()
         mapper = ActionMapper(settings)
-        bridge = Bridge(link, mapper, bus, config.takeoff_m or settings.takeoff_altitude_m)
+        bridge = Bridge(link, mapper, bus, settings.takeoff_altitude_m)
         if not config.headless:
             from gcs_voice.session.view import LiveView
 
@@ -140,32 +207,50 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
         telemetry = link.request_telemetry()
         if not telemetry.ok:
             bus.emit("warning", f"telemetry request: {telemetry}")
-        pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus)
+        pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus,
+                                 stop_spotter=_stop_spotter(config, dictionaries, bus))
         ready: threading.Event | None = None
         if config.takeoff_m is not None:
             bridge.submit(Request("take_off", "script"))
             ready = bridge.flying_ready
         if steps:
             start_voice_thread(bridge, run_script, pipeline, bridge, steps, 0.0, ready,
-                               settings.arm_timeout_s + settings.takeoff_timeout_s + 30.0)
+                               link.ready_timeout_s + settings.takeoff_timeout_s + 30.0)
         else:
             from gcs_voice.audio.microphone import microphone_utterances
             from gcs_voice.session.keys import talk
 
+            stop_path = pipeline.stop_path
+            on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
             start_voice_thread(bridge, run_microphone, pipeline, bridge,
-                               microphone_utterances(talk if config.push_to_talk else None))
+                               microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech),
+                               stop_path is not None)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
 
             start_key_thread(bridge)
         exit_code = bridge.run()
-    except KeyboardInterrupt:
-        bus.emit("session", "interrupted (Ctrl-C) before the flight loop", phase="interrupt")
-        exit_code = 130
+        if watch.count:  # a flight that hit something did not go well, whatever else went right
+            exit_code = exit_code or COLLISION_EXIT
+    except KeyboardInterrupt as exc:
+        signum = exc.signum if isinstance(exc, _Terminated) else 2
+        bus.emit("session", f"{'interrupted (Ctrl-C)' if signum == 2 else f'signal {signum}'} before the flight loop",
+                 phase="interrupt")
+        exit_code = 128 + signum
+    except GcsVoiceError as exc:  # the CLI prints it in one line and exits 2: the log says the same
+        exit_code, error = USER_ERROR_EXIT, str(exc)
+        raise
     finally:
         if view is not None:
             view.stop()
-        link.close()
-        bus.emit("session", f"session end (exit {exit_code})", phase="end", exit_code=exit_code)
+        if link is not None:
+            link.close()
+        heard = link is not None and link.state.heartbeats > 0
+        collided = f"; {watch.count} collision{'s' if watch.count > 1 else ''}" if watch.count else ""
+        bus.emit("session", f"session end (exit {exit_code}{collided})", phase="end", exit_code=exit_code,
+                 collisions=watch.count, **({"error": error} if error else {}))
         log.close()
+        if not heard:  # nothing flew and nothing was heard: no logs (the one-line error says why)
+            for path in (tlog, jsonl):
+                path.unlink(missing_ok=True)
     return SessionResult(exit_code, tlog, jsonl, [e.to_dict() for e in bus.history])

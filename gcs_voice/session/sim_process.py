@@ -7,6 +7,7 @@ demo, the end-to-end tests and the latency benchmark all start the simulator thr
 
 from __future__ import annotations
 
+import math
 import os
 import signal
 import socket
@@ -36,7 +37,7 @@ class BundledSim:
     """``with BundledSim(autopilot="ardupilot", speedup=2) as sim: connect to sim.connection``.
 
     The simulator sends to ``udp:127.0.0.1:PORT``; the ground station listens there
-    (``sim.connection`` is the matching ``udpin:`` string).
+    (``sim.connection`` is the matching ``udpin:`` string). ``speedup`` infinity is ``--speedup max``.
     """
 
     def __init__(self, autopilot: str = "ardupilot", speedup: float | None = None, room: str | None = None,
@@ -60,7 +61,7 @@ class BundledSim:
         cmd = [sys.executable, "-m", "sim_bridge.cli", "--out", f"udp:127.0.0.1:{self.port}",
                "--autopilot", self.autopilot]
         if self.speedup:
-            cmd += ["--speedup", f"{self.speedup:g}"]
+            cmd += ["--speedup", "max" if math.isinf(self.speedup) else f"{self.speedup:g}"]
         if self.room:
             cmd += ["--room", self.room]
         if self.sim_tlog:

@@ -28,6 +28,8 @@ class ViewState:
 
     last_heard: dict[str, Any] | None = None
     last_command: dict[str, Any] | None = None
+    #: an utterance has ended and its decision is pending (the ``thinking`` event), until it is heard
+    thinking: dict[str, Any] | None = None
     rejected: deque = field(default_factory=lambda: deque(maxlen=5))
     warnings: deque = field(default_factory=lambda: deque(maxlen=6))
     vehicle_texts: deque = field(default_factory=lambda: deque(maxlen=4))
@@ -36,13 +38,16 @@ class ViewState:
     def __call__(self, event: Event) -> None:
         record = event.to_dict()
         with self.lock:
-            if event.kind == "heard":
+            if event.kind == "thinking":
+                self.thinking = record
+            elif event.kind == "heard":
                 self.last_heard = record
+                self.thinking = None
             elif event.kind == "command":
                 self.last_command = record
             elif event.kind == "rejected":
                 self.rejected.appendleft(record)
-            elif event.kind in ("refused", "warning", "error", "link", "flight"):
+            elif event.kind in ("refused", "warning", "error", "link", "flight", "late", "spotted"):
                 self.warnings.appendleft(record)
             elif event.kind == "vehicle":
                 self.vehicle_texts.appendleft(record)
@@ -77,9 +82,12 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
                     Text("ARMED", style="bold red") if status.get("armed") else Text("disarmed"))
     vehicle.add_row("altitude", _fmt(status.get("alt_m"), " m", 2), "heading", _fmt(status.get("heading_deg"), " deg", 0))
     vehicle.add_row("speed", _fmt(status.get("speed_m_s"), " m/s", 2), "action", _fmt(status.get("action")))
+    if status.get("ready"):  # disarmed: what the vehicle still waits for ("waiting for: position (EKF)")
+        style = "green" if status["ready"] == "ready to arm" else "yellow"
+        vehicle.add_row("vehicle", Text(str(status["ready"]), style=style), "", "")
 
     with state.lock:
-        heard, command = state.last_heard, state.last_command
+        heard, command, thinking = state.last_heard, state.last_command, state.thinking
         rejected, warnings, texts = list(state.rejected), list(state.warnings), list(state.vehicle_texts)
 
     voice = Table.grid(padding=(0, 1))
@@ -93,7 +101,9 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
         how = (f"  score {command['score']:.2f}" if isinstance(command.get("score"), (int, float))
                else f"  ({command.get('origin', '?')})")
         voice.add_row("did", Text(f"{said}{command.get('action')}{how}", style="bold cyan"))
-    if not heard and not command:
+    if thinking:
+        voice.add_row("now", Text(f"thinking… (utterance ended {_clock(thinking['t'])})", style="italic yellow"))
+    if not heard and not command and not thinking:
         voice.add_row("", Text("say a command" + (f" ({listening})" if listening else "")))
     elif listening:
         voice.add_row("mic", listening)
@@ -107,7 +117,8 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
     warn.add_column(style="dim")
     warn.add_column()
     for w in warnings:
-        style = "red" if w["kind"] in ("refused", "error") or w.get("state") == "lost" else "white"
+        style = ("red" if w["kind"] in ("refused", "error", "late") or w.get("state") == "lost"
+                 else "bold cyan" if w["kind"] == "spotted" else "white")
         warn.add_row(_clock(w["t"]), Text(w["msg"], style=style))
     for v in texts:
         warn.add_row(_clock(v["t"]), Text(f"vehicle: {v.get('text', v['msg'])}", style="magenta"))

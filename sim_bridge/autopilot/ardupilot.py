@@ -14,7 +14,7 @@ from typing import Any
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
-from sim_bridge.autopilot.base import FORCE_MAGIC, Autopilot, CommandContext
+from sim_bridge.autopilot.base import FORCE_MAGIC, INT32_MAX, INT32_MIN, Autopilot, CommandContext
 from sim_bridge.setpoints import FrameRules
 from sim_bridge.vehicle import Behaviour, VehicleEvent
 
@@ -30,6 +30,8 @@ ARMABLE_MODES = frozenset({STABILIZE, ALT_HOLD, GUIDED, LOITER, POSHOLD})
 POSITION_CONTROLLED_MODES = frozenset({GUIDED, LOITER, RTL, LAND, POSHOLD, BRAKE})
 ALWAYS_ON_FLAGS = (mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED | mavlink.MAV_MODE_FLAG_STABILIZE_ENABLED
                    | mavlink.MAV_MODE_FLAG_MANUAL_INPUT_ENABLED)
+#: Modes that need a position from the EKF: refused armed without one, and their arming checks ask for it.
+NEEDS_POSITION_MODES = frozenset({GUIDED, LOITER, RTL, POSHOLD, BRAKE})
 #: ArduCopter's takeoff climb seen in SITL (peak 1.23 m/s to 2 m); PILOT_SPEED_UP caps it.
 TAKEOFF_CLIMB_M_S = 1.25
 
@@ -41,10 +43,24 @@ class ArduCopter(Autopilot):
         frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_OFFSET_NED,
                           mavlink.MAV_FRAME_BODY_NED, mavlink.MAV_FRAME_BODY_OFFSET_NED}),
         body_yaw_relative=True, any_bit_ignores_group=True, body_position_ignored=False)
+    touchdown_is_a_hit = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode = STABILIZE
+        self._resets_done = 0
+        self._next_prearm_s = math.inf
         super().__init__(*args, **kwargs)
+
+    def start_cold(self, scale: float = 1.0) -> None:
+        super().start_cold(scale)
+        if self.cold.prearm_report_s > 0:
+            self._next_prearm_s = self.cold.prearm_report_s
+
+    def _arm_refusals(self, mode: int) -> tuple[str, ...]:
+        """The cold start's "Arm: ..." checks that fail now for ``mode`` (none without --cold-start)."""
+        if self.cold is None:
+            return ()
+        return self.cold.arm_refusals(self.now_s, mode in NEEDS_POSITION_MODES)
 
     # ----------------------------------------------------------------- state
     def apply_params(self) -> None:
@@ -89,7 +105,8 @@ class ArduCopter(Autopilot):
         return base, self.mode, status
 
     def armable(self) -> bool:
-        return self.booted and not self.vehicle.armed and self.mode in ARMABLE_MODES
+        return (self.booted and not self.vehicle.armed and self.mode in ARMABLE_MODES
+                and not self._arm_refusals(self.mode))
 
     def position_target(self) -> tuple | None:
         if self.mode != GUIDED or self.vehicle.behaviour is not Behaviour.VELOCITY:
@@ -113,6 +130,11 @@ class ArduCopter(Autopilot):
             return mavlink.MAV_RESULT_FAILED
         if number == self.mode:
             return mavlink.MAV_RESULT_ACCEPTED
+        if self.vehicle.armed and number in NEEDS_POSITION_MODES and not self.has_position():
+            # disarmed, the mode checks are skipped (the arming checks catch it); armed, they are not
+            self.out.text(mavlink.MAV_SEVERITY_WARNING,
+                          f"Mode change to {mavutil.mode_mapping_acm[number]} failed: requires position")
+            return mavlink.MAV_RESULT_FAILED
         self.mode = number
         self._enter_mode()
         self.out.send_heartbeat_now()
@@ -152,6 +174,44 @@ class ArduCopter(Autopilot):
                     else mavlink.MAV_RESULT_FAILED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
 
+    def stream_rates(self) -> dict[str, float]:
+        """``[streams]`` maps each MAVn_* rate parameter to its stream id and messages."""
+        return {name: self.params.get(param) for param, group in self.streams.items() for name in group["messages"]}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        group = self.streams.get(param_name)
+        return list(group["messages"]) if isinstance(group, dict) else []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """Sets the MAVn_* rate parameters of the stream (0 = all); they range 0-50 Hz."""
+        rate = min(float(msg.req_message_rate), 50.0) if msg.start_stop else 0.0
+        for param_name, group in self.streams.items():
+            if msg.req_stream_id in (0, group["stream"]):
+                self.params.set(param_name, rate)
+
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """AC_Fence: present and healthy (the capture: present=1, enabled=FENCE_ENABLE, health=1); the sim's
+        fence stops the vehicle before the boundary, so it is never breached."""
+        return True, self.vehicle.fence.enabled, True
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """GCS_MAVLINK::set_message_interval: param2 read as int32; 0 = default, -1 = off, 1 ms to 60 s.
+
+        One deliberate difference: ArduPilot would let a client silence HEARTBEAT on that link (-1) or slow
+        it to once a minute; a UDP port is one link shared by every sender, so one stray client would hide the
+        vehicle from the others. The sim keeps HEARTBEAT at 1 Hz (DENIED), as PX4 does. Other rates apply as
+        ArduPilot's.
+        """
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_DENIED, None
+        us = int(max(INT32_MIN, min(INT32_MAX, interval_us)))
+        if us == 0:
+            return mavlink.MAV_RESULT_ACCEPTED, None
+        if us == -1:
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        interval_ms = 1 if us < 1000 else 60000 if us > 60_000_000 else us // 1000
+        return mavlink.MAV_RESULT_ACCEPTED, 1000.0 / interval_ms
+
     def on_set_mode(self, msg: Any) -> list[int]:
         if msg.base_mode & mavlink.MAV_MODE_FLAG_CUSTOM_MODE_ENABLED:
             self.set_mode(int(msg.custom_mode))
@@ -175,6 +235,11 @@ class ArduCopter(Autopilot):
             return mavlink.MAV_RESULT_FAILED
         if self.mode not in ARMABLE_MODES and not forced:
             self.out.text(mavlink.MAV_SEVERITY_CRITICAL, "Arm: Mode not armable")
+            return mavlink.MAV_RESULT_FAILED
+        refusals = () if forced else self._arm_refusals(self.mode)
+        for text in refusals:
+            self.out.text(mavlink.MAV_SEVERITY_CRITICAL, text)
+        if refusals:
             return mavlink.MAV_RESULT_FAILED
         vehicle.arm()
         self.out.text(mavlink.MAV_SEVERITY_INFO, "Arming motors")
@@ -215,8 +280,25 @@ class ArduCopter(Autopilot):
 
     def update(self, events: list[VehicleEvent]) -> None:
         super().update(events)
+        if self.cold is not None:
+            self._cold_boot_rules()
         for event in events:
             if event in (VehicleEvent.DISARMED_LANDED, VehicleEvent.DISARMED_IDLE):
                 self.out.text(mavlink.MAV_SEVERITY_INFO, "Disarming motors")
             elif event is VehicleEvent.RTL_LANDING:
                 pass   # ArduCopter stays in RTL through its final descent
+
+    def _cold_boot_rules(self) -> None:
+        """End of initialisation and the RC mode switch reset the mode; the pre-arm report while not ready."""
+        cold = self.cold
+        resets = cold.mode_resets_s
+        while self._resets_done < len(resets) and self.now_s >= resets[self._resets_done]:
+            self._resets_done += 1
+            if self.mode != STABILIZE and not self.vehicle.armed:
+                self.mode = STABILIZE
+                self._enter_mode()
+                self.out.send_heartbeat_now()
+        if self.now_s >= self._next_prearm_s:
+            self._next_prearm_s += cold.prearm_report_s
+            if self.booted and not self.vehicle.armed and self._arm_refusals(GUIDED) and cold.prearm_text:
+                self.out.text(mavlink.MAV_SEVERITY_CRITICAL, cold.prearm_text)

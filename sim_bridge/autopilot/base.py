@@ -14,6 +14,7 @@ from typing import Any, Protocol
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.autopilot.boot import ColdBoot
 from sim_bridge.params import ParamStore
 from sim_bridge.setpoints import FrameRules, SetpointRejected, decode_setpoint
 from sim_bridge.vehicle import Vehicle, VehicleEvent
@@ -22,6 +23,8 @@ __all__ = ["Autopilot", "Outbox", "CommandContext", "load_personality_data", "FO
 
 #: param2 of MAV_CMD_COMPONENT_ARM_DISARM that forces arming/disarming past the checks (both autopilots).
 FORCE_MAGIC = 21196
+#: MESSAGE_INTERVAL.interval_us is an int32 on the wire; a float param beyond it is read as its nearest end.
+INT32_MIN, INT32_MAX = -(1 << 31), (1 << 31) - 1
 
 
 class Outbox(Protocol):
@@ -56,6 +59,12 @@ class Autopilot:
     name = "base"
     mav_autopilot = mavlink.MAV_AUTOPILOT_GENERIC
     frame_rules: FrameRules
+    #: SYS_STATUS lists MAV_SYS_STATUS_PREARM_CHECK as present/enabled (ArduPilot); PX4 sets it only in health
+    prearm_bit_present = True
+    #: STATUSTEXT longer than 50 bytes: sent in chunks sharing an id (PX4), else cut at 50 (ArduPilot)
+    chunks_long_texts = False
+    #: a touchdown is reported as "SIM Hit ground at ..." (ArduPilot SITL does; PX4 SIH does not)
+    touchdown_is_a_hit = False
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
@@ -71,6 +80,9 @@ class Autopilot:
         self.streams: dict = data["streams"]
         self.rejected_setpoints = 0
         self.booted = False
+        self._data = data
+        #: the real autopilot's boot timeline (``start_cold``), or None: ready after ``boot_s``
+        self.cold: ColdBoot | None = None
         params.on_change(lambda _name, _value: self.apply_params())
         self.apply_params()
 
@@ -84,6 +96,23 @@ class Autopilot:
 
     def time_unix_usec(self) -> int:
         return int((self.epoch_unix_s + self.now_s) * 1e6)
+
+    def start_cold(self, scale: float = 1.0) -> None:
+        """Boot like the real autopilot (``[cold_start]`` of the personality's TOML), times multiplied by ``scale``."""
+        self.cold = ColdBoot.from_data(self._data["cold_start"], scale)
+        self.boot_s = self.cold.init_end_s
+
+    def has_position(self) -> bool:
+        """The estimator has a position (always, unless a cold start is still converging)."""
+        return self.cold is None or self.cold.has_position(self.now_s)
+
+    def ekf_flags(self) -> int:
+        """EKF_STATUS_REPORT.flags: ArduCopter's values before and after "EKF3 is using GPS"."""
+        if self.cold is not None:
+            flags = self.cold.ekf_flags(self.now_s)
+            if flags is not None:
+                return flags
+        return 831 if self.booted and self.has_position() else 167
 
     # ----------------------------------------------------------------- hooks
     def apply_params(self) -> None:
@@ -109,6 +138,28 @@ class Autopilot:
     def on_setpoint(self, msg: Any) -> None:
         raise NotImplementedError
 
+    def stream_rates(self) -> dict[str, float]:
+        """Default rate (Hz) of each streamed message, by name: ``[streams]`` of the personality data."""
+        return {name: float(rate_hz) for name, rate_hz in self.streams.items()}
+
+    def messages_paced_by(self, param_name: str) -> list[str]:
+        """Messages whose rate a parameter sets (ArduPilot's MAVn_* groups); none by default."""
+        return []
+
+    def on_request_data_stream(self, msg: Any) -> None:
+        """REQUEST_DATA_STREAM; ignored by default (PX4: deprecated, does nothing)."""
+
+    def geofence_status(self) -> tuple[bool, bool, bool]:
+        """SYS_STATUS geofence bit as (present, enabled, healthy); PX4's SIH capture reports none."""
+        return False, False, False
+
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """SET_MESSAGE_INTERVAL as this firmware reads it, for the asking link only.
+
+        Returns (MAV_RESULT, rate in Hz): None = back to the default, 0 = off. ``interval_us`` is finite.
+        """
+        raise NotImplementedError
+
     def position_target(self) -> tuple | None:
         """(type_mask, pos, vel, yaw, yaw_rate) for POSITION_TARGET_LOCAL_NED, or None."""
         return None
@@ -117,6 +168,9 @@ class Autopilot:
         return []
 
     def update(self, events: list[VehicleEvent]) -> None:
+        if self.cold is not None:
+            for line in self.cold.texts_due(self.now_s):
+                self.out.text(mavlink.MAV_SEVERITY_INFO, line)
         if not self.booted and self.now_s >= self.boot_s:
             self.booted = True
             for line in self.texts.get("boot", []):

@@ -50,6 +50,8 @@ class PX4(Autopilot):
     mav_autopilot = mavlink.MAV_AUTOPILOT_PX4
     frame_rules = FrameRules(frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_NED}),
                              body_yaw_relative=False, any_bit_ignores_group=False, body_position_ignored=True)
+    prearm_bit_present = False   # PX4.md: only onboard_control_sensors_health gets PREARM_CHECK when armable
+    chunks_long_texts = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode: tuple[int, int] = HOLD
@@ -188,6 +190,16 @@ class PX4(Autopilot):
             return [mavlink.MAV_RESULT_ACCEPTED]
         return [mavlink.MAV_RESULT_UNSUPPORTED]
 
+    def message_interval(self, msg_id: int, interval_us: float) -> tuple[int, float | None]:
+        """MavlinkReceiver::set_message_interval: HEARTBEAT is never changed; < 0 = off, 0 = default."""
+        if msg_id == mavlink.MAVLINK_MSG_ID_HEARTBEAT:
+            return mavlink.MAV_RESULT_FAILED, None
+        if interval_us < -1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 0.0
+        if interval_us > 1e-5:
+            return mavlink.MAV_RESULT_ACCEPTED, 1e6 / interval_us
+        return mavlink.MAV_RESULT_ACCEPTED, None
+
     def on_set_mode(self, msg: Any) -> list[int]:
         main = (msg.custom_mode >> 16) & 0xFF
         sub = (msg.custom_mode >> 24) & 0xFF
@@ -206,6 +218,8 @@ class PX4(Autopilot):
         if vehicle.armed:
             return mavlink.MAV_RESULT_ACCEPTED
         if not (self.booted and self._mode_armable(self.mode)) and not forced:
+            for text in (self.cold.arm_refusals(self.now_s, True) if self.cold is not None else ()):
+                self.out.text(mavlink.MAV_SEVERITY_CRITICAL, text)   # "Preflight Fail: heading estimate not stable"
             self.out.text(mavlink.MAV_SEVERITY_CRITICAL, ARM_DENIED)
             return mavlink.MAV_RESULT_TEMPORARILY_REJECTED
         vehicle.arm()
@@ -263,6 +277,10 @@ class PX4(Autopilot):
             return   # a dropped setpoint is no offboard signal
         self.last_signal_s = self.now_s
         self.signal_seen = True
+        if self.cold is not None and self.cold.velocity_only_sink_m_s and sp.pos_ned_m[2] is None:
+            # SIH's estimator on velocity-only setpoints: the height is not held (PX4.md)
+            vel = sp.vel_ned_m_s
+            sp.vel_ned_m_s = (vel[0], vel[1], vel[2] + self.cold.velocity_only_sink_m_s)
         self.vehicle.setpoint = sp
         if self.mode == OFFBOARD_MODE and self.vehicle.armed:
             self.vehicle.follow(sp, from_ground=True)

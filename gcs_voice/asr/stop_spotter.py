@@ -1,0 +1,152 @@
+"""A stop that is never late: spot the stop class (stop, halt, hold, ...; para, alto, ...) cheaply, first.
+
+Stopping is always safe, so a stop must not wait for the main recogniser, which can take seconds on a
+busy machine. This runs PocketSphinx keyword spotting (the English model in the pocketsphinx wheel;
+the Spanish words get phone strings in ``stop_spotter.toml``) on each utterance before the main
+recogniser: a few tens of milliseconds. When it fires the session stops the vehicle at once; the main
+decision follows and may command something else. A false stop costs a pause, a late stop a wall.
+
+Every utterance starts from freshly initialised features (``reinit_feat``: the cepstral mean and the
+rest), so the answer does not depend on what was heard before.
+"""
+
+from __future__ import annotations
+
+import tempfile
+import threading
+import time
+import tomllib
+from dataclasses import dataclass
+from pathlib import Path
+
+from gcs_voice.errors import ModelError
+
+__all__ = ["StopSpotter", "StopHit", "SpotStream", "load_stop_spotter", "SETTINGS_PATH"]
+
+SETTINGS_PATH = Path(__file__).resolve().parent / "stop_spotter.toml"
+
+
+@dataclass(frozen=True)
+class StopHit:
+    """What the spotter heard: the word, or None; and how long it took."""
+
+    word: str | None
+    ms: float
+
+    @property
+    def fired(self) -> bool:
+        return self.word is not None
+
+
+class StopSpotter:
+    """Keyword spotting over one utterance of 16 kHz mono s16le PCM; thread-safe (one decoder, a lock)."""
+
+    def __init__(self, languages: list[str], settings_path: Path = SETTINGS_PATH,
+                 thresholds: dict[str, float] | None = None, words: list[str] | None = None) -> None:
+        from pocketsphinx import Decoder
+
+        with open(settings_path, "rb") as f:
+            data = tomllib.load(f)
+        lines, phones = [], {}
+        for lang in languages:
+            if lang not in data:
+                continue
+            section = data[lang]
+            threshold = (thresholds or {}).get(lang, float(section["threshold"]))
+            for word in (words if words is not None else section["words"]):
+                token = f"{word}_{lang}" if word in section.get("phones", {}) else word
+                if token != word:
+                    phones[token] = section["phones"][word]
+                lines.append(f"{token} /{threshold:g}/")
+        if not lines:
+            raise ModelError(f"the stop spotter has no words for {', '.join(languages) or 'no language'}")
+        try:
+            self.decoder = Decoder(lm=None, loglevel="FATAL")
+        except Exception as exc:  # pocketsphinx raises RuntimeError with no detail
+            raise ModelError(f"cannot load the PocketSphinx model for the stop spotter: {exc}") from None
+        for token, ph in phones.items():
+            self.decoder.add_word(token, ph, True)
+        missing = [line.split()[0] for line in lines if self.decoder.lookup_word(line.split()[0]) is None]
+        if missing:
+            raise ModelError(f"stop spotter words without pronunciation: {', '.join(missing)}")
+        with tempfile.NamedTemporaryFile("w", suffix=".kws", delete=False) as f:
+            f.write("\n".join(lines) + "\n")
+            kws_file = f.name
+        try:
+            self.decoder.add_kws("stop", kws_file)
+        finally:
+            Path(kws_file).unlink(missing_ok=True)
+        self.decoder.activate_search("stop")
+        self.words = [line.split()[0] for line in lines]
+        self._lock = threading.Lock()
+
+    def spot(self, pcm: bytes) -> StopHit:
+        """Whether a stop word is anywhere in this utterance (decoded whole)."""
+        stream = self.start_stream()
+        stream.accept(pcm)
+        return stream.finish()
+
+    def start_stream(self) -> SpotStream:
+        """Spot while the utterance is still arriving: ``accept`` says as soon as a stop word is heard."""
+        return SpotStream(self)
+
+
+def _word(hyp: object) -> str | None:
+    text = getattr(hyp, "hypstr", "") if hyp is not None else ""
+    return text.split()[0].rsplit("_", 1)[0] if text and text.split() else None
+
+
+class SpotStream:
+    """One utterance fed in pieces; the decoder is held (a lock) from the first piece to ``finish``.
+
+    ``finish`` decodes the same whole utterance as ``spot`` does: the stream only decides earlier.
+    """
+
+    def __init__(self, spotter: StopSpotter) -> None:
+        self.spotter = spotter
+        self.word: str | None = None
+        self.ms = 0.0
+        self._open = False
+        self._done = False
+
+    def accept(self, pcm: bytes) -> str | None:
+        """Feed more audio; the stop word once heard (then on every later call), else None."""
+        if self._done or not pcm:
+            return self.word
+        started = time.perf_counter()
+        d = self.spotter.decoder
+        if not self._open:
+            self.spotter._lock.acquire()
+            self._open = True
+            d.reinit_feat()  # fresh features: set_cmn alone left state behind (same audio, other words)
+            d.start_utt()
+        d.process_raw(pcm, False, False)
+        if self.word is None:
+            self.word = _word(d.hyp())
+        self.ms += (time.perf_counter() - started) * 1000.0
+        return self.word
+
+    def finish(self) -> StopHit:
+        """End the utterance (idempotent): whether a stop word was anywhere in it, and the decoding time."""
+        if not self._done:
+            self._done = True
+            if self._open:
+                started = time.perf_counter()
+                d = self.spotter.decoder
+                try:
+                    d.end_utt()
+                    if self.word is None:
+                        self.word = _word(d.hyp())
+                finally:
+                    self.spotter._lock.release()
+                self.ms += (time.perf_counter() - started) * 1000.0
+        return StopHit(self.word, self.ms)
+
+
+def load_stop_spotter(languages: list[str], thresholds: dict[str, float] | None = None,
+                      words: list[str] | None = None) -> StopSpotter:
+    """The stop spotter for these dictionary languages (English and Spanish words; others are ignored).
+
+    ``thresholds`` (per language) and ``words`` override ``stop_spotter.toml`` (for the benchmark's sweep).
+    """
+    return StopSpotter(languages, thresholds=thresholds, words=words)

@@ -1,0 +1,90 @@
+"""What the bridge reports is true: the mode after a link returns, a north heading as 0, a Ctrl-C stop at once.
+
+The link tests run against ``link_peer.ScriptedVehicle`` (a MAVLink vehicle on 127.0.0.1) so that the
+order of messages after a dropout can be chosen: telemetry first, the HEARTBEAT with the new mode last.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+from gcs_voice.actions.mapper import ActionMapper
+from gcs_voice.actions.setpoint import round_deg
+from gcs_voice.link import VehicleLink
+from gcs_voice.link.state import VehicleState
+from gcs_voice.session.bridge import Bridge, Request, status_of
+from gcs_voice.session.events import EventBus
+from gcs_voice.settings import load_settings
+from link_peer import PX4_HOLD, PX4_OFFBOARD, ScriptedVehicle
+
+
+def _event(bus: EventBus, timeout_s: float, **fields) -> dict | None:
+    """The first event whose fields match, waiting for it (None if it never comes)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        for event in list(bus.history):
+            record = event.to_dict()
+            if all(record.get(k) == v for k, v in fields.items()):
+                return record
+        time.sleep(0.02)
+    return None
+
+
+def test_link_restored_reports_the_mode_the_vehicle_is_in_now(tmp_path: Path) -> None:
+    """A PX4 failsafe changes the mode while the link is down; telemetry comes back before the HEARTBEAT."""
+    settings = load_settings()
+    bus = EventBus()
+    with ScriptedVehicle(autopilot="px4", custom_mode=PX4_OFFBOARD) as vehicle:
+        link = VehicleLink(vehicle.connection, settings, tlog_path=tmp_path / "s.tlog")
+        link.open()
+        try:
+            link.wait_vehicle(10)
+            bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
+            loop = threading.Thread(target=bridge.run, daemon=True)
+            loop.start()
+            connected = _event(bus, 10, kind="link", state="connected")
+            assert connected is not None and connected["mode"] == "OFFBOARD"
+            vehicle.sending = False
+            assert _event(bus, 10, kind="link", state="lost") is not None
+            vehicle.custom_mode = PX4_HOLD  # the failsafe, while nobody hears it
+            vehicle.sending = True  # 10 Hz telemetry is heard before the next 1 Hz HEARTBEAT
+            restored = _event(bus, 10, kind="link", state="restored")
+            bridge.finish()
+            loop.join(5)
+        finally:
+            link.close()
+    assert restored is not None
+    assert restored["mode"] == link.state.mode != "OFFBOARD", restored
+    assert "OFFBOARD" not in restored["msg"]
+
+
+def test_north_is_0_not_360_in_every_report() -> None:
+    assert [round_deg(a, 1) for a in (359.97, 360.0, -0.01, 0.04, 720.0)] == [0.0, 0.0, 0.0, 0.0, 0.0]
+    assert round_deg(359.94, 1) == 359.9 and round_deg(89.96, 1) == 90.0
+    state = VehicleState(system_id=1, heading_deg=359.7, last_heard_s=0.0, link_ok=True)
+    assert status_of(state, "stop")["heading_deg"] == 0.0
+    # the command event of a turn that lands just short of north says 0.0
+    settings = load_settings()
+    mapper = ActionMapper(settings)
+    state = VehicleState(system_id=1, heading_deg=269.97, north_m=0.0, east_m=0.0, down_m=-2.0, home_north_m=0.0,
+                         home_east_m=0.0, home_down_m=0.0, last_heard_s=0.0, link_ok=True)
+    assert round_deg(mapper.apply("turn_right", state).yaw_target_deg, 1) == 0.0
+
+
+def test_halt_makes_the_very_next_setpoint_a_stop_from_any_thread() -> None:
+    """Ctrl-C's handler halts the mapper; the stream thread's next setpoint is a stop, and stays one."""
+    settings = load_settings()
+    mapper = ActionMapper(settings)
+    state = VehicleState(system_id=1, heading_deg=0.0, north_m=0.0, east_m=0.0, down_m=-2.0, home_north_m=0.0,
+                         home_east_m=0.0, home_down_m=0.0, last_heard_s=0.0, link_ok=True)
+    mapper.apply("go_forward", state)
+    assert not mapper.setpoint(state).is_stop
+    halter = threading.Thread(target=mapper.halt)
+    halter.start()
+    halter.join()
+    assert mapper.setpoint(state).is_stop and mapper.action == "stop"
+    mapper.apply("go_left", state)  # a command heard after the Ctrl-C moves nothing
+    assert mapper.setpoint(state).is_stop
+

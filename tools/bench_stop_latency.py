@@ -1,0 +1,186 @@
+"""Stop latency with both cores loaded by another process: end of speech to the stop setpoint on the wire.
+
+Flies one real session (``gcs_voice.session.run.run_session``, what ``gcs-voice --say`` runs) against the
+bundled simulator in real time on loopback, while this tool keeps two busy-loop processes running (one
+per core: "another process" loading the machine). The script alternates a motion (the bundled demo
+recording; done by the script anyway if it is not heard, so there is always something to stop) with a
+real recorded "stop" from the held-out test part of ``../shared/speech`` (tools/bench_stream.py split).
+
+For each stop: the end of speech is the end of the recording's voiced frames (25 dB below its peak,
+tools/bench_stream.voiced_level) on the wall clock of the feed (recordings are fed at speaking pace);
+the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire after it (the session's
+tlog). A stop heard by the stop spotter goes out before the main recogniser runs; one it misses waits for
+the main decision (or never comes: missed).
+
+    python -m tools.bench_stop_latency --out docs/bench/latency.md
+
+``--out`` replaces this benchmark's section ("## Stop latency with both cores loaded") in that file, or
+appends it: the rest of the file (tools/bench_latency.py's tables) stays.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from tools.bench_latency import percentile
+from tools.bench_stream import SHARED, held_out, read_wav, voiced_level
+
+ROOT = Path(__file__).resolve().parent.parent
+MOTIONS = ("go_forward", "go_left", "climb", "turn_left")
+MOTION_ACTION = {"go_forward": "go_forward", "go_left": "go_left", "climb": "up", "turn_left": "turn_left"}
+GAP_S = 2.0
+RATE = 16_000
+
+
+def hog(n: int) -> list[subprocess.Popen]:
+    """``n`` busy-loop processes: the other load on the machine (ended by the caller, by pid)."""
+    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+
+
+def main(argv: list[str] | None = None) -> int:
+    from gcs_voice.session.listen import ScriptStep
+    from gcs_voice.session.run import SessionConfig, load_voice, run_session
+    from gcs_voice.session.sim_process import BundledSim
+
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--engine", default="sphinx", help="main recogniser (default sphinx: quick runs; the stop "
+                   "spotter runs before it whatever it is)")
+    p.add_argument("--model", default=None)
+    p.add_argument("--hogs", type=int, default=2, help="busy-loop processes (default 2: both cores)")
+    p.add_argument("--stops", type=int, default=0, help="use only this many stop recordings (0: all)")
+    p.add_argument("--no-spotter", action="store_true", help="without the stop spotter (for comparison)")
+    p.add_argument("--out", default=None)
+    p.add_argument("--speech", type=Path, default=SHARED / "speech")
+    p.add_argument("--from", dest="from_dir", type=Path, default=None,
+                   help="analyse the session this tool left in DIR (stop.jsonl, stop.tlog) instead of flying")
+    args = p.parse_args(argv)
+
+    stops = [c.path for c in held_out(args.speech, part="test") if c.truth == "stop"]
+    if args.stops:
+        stops = stops[:args.stops]
+    demo = ROOT / "gcs_voice" / "session" / "demo_audio" / "en"
+    script = []
+    for i, stop in enumerate(stops):
+        motion = MOTIONS[i % len(MOTIONS)]
+        script.append(ScriptStep(demo / f"{motion}.wav", GAP_S, fallback_action=MOTION_ACTION[motion]))
+        script.append(ScriptStep(stop, GAP_S))
+    voiced_tail = {}
+    for s in stops:
+        x = read_wav(s)
+        _, _, v1 = voiced_level(x)
+        voiced_tail[s.name] = (x.size - v1) / RATE  # seconds of the file after its last voiced frame
+    if args.from_dir:
+        return report(args, argv, stops, *analyse(args.from_dir / "stop.jsonl", args.from_dir / "stop.tlog", stops,
+                                                  voiced_tail), load=("-", "-"), work=args.from_dir)
+    work = Path(tempfile.mkdtemp(prefix="bench-stop-"))
+    voice = load_voice("en", args.engine, args.model, None)
+    hogs = hog(args.hogs)
+    try:
+        time.sleep(1.0)
+        load_before = os.getloadavg()[0]
+        with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / "sim.log") as sim:
+            result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
+                                               headless=True, quiet=True, log_dir=work, log_name="stop",
+                                               stop_spotter=not args.no_spotter), voice=voice)
+        load_after = os.getloadavg()[0]
+    finally:
+        for h in hogs:
+            h.kill()
+            h.wait()
+    return report(args, argv, stops, *analyse(result.jsonl, result.tlog, stops, voiced_tail),
+                  load=(f"{load_before:.1f}", f"{load_after:.1f}"), work=work)
+
+
+def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path], spotted_l: list[float],
+           all_l: list[float], missed: int, load: tuple[str, str], work: Path) -> int:
+    shown = " ".join(["python -m tools.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
+    fmt = lambda v: f"{percentile(v, .5):.0f} | {percentile(v, .95):.0f}" if v else "- | -"  # noqa: E731
+    lines = [
+        f"| stop spotter, then {args.engine} | {len(stops)} | {len(spotted_l)} | {fmt(spotted_l)} | {len(all_l)} | "
+        f"{fmt(all_l)} | {missed} | {load[0]} / {load[1]} |",
+    ]
+    report = "\n".join([
+        "## Stop latency with both cores loaded",
+        "",
+        f"Command: `{shown}`. {args.hogs} busy-loop processes run beside the session (load average before / after "
+        "in the last column, 2 cores). Real time, bundled simulator (ardupilot, open_field) on UDP loopback.",
+        "Stops: the real \"stop\" recordings of the held-out test part of `../shared/speech`, each after a motion "
+        "(demo recording; done by the script if not heard). Clock origin: the end of speech (the recording's last "
+        "voiced frame, fed at speaking pace); end: the first zero-velocity setpoint on the wire (tlog). "
+        f"Milliseconds; negative: the stop was on the wire before the recording's last voiced frame (the spotter "
+        f"fires while the word is still being said). Session log and tlog: `{work}`.",
+        "",
+        "| path | stops said | stopped by the spotter | p50 | p95 | stopped at all | p50 | p95 | missed | load |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+        *lines, "",
+    ])
+    print(report)
+    if args.out:
+        write_section(Path(args.out), report)
+    return 0
+
+
+def analyse(jsonl: Path, tlog: Path, stops: list[Path], voiced_tail: dict[str, float]
+            ) -> tuple[list[float], list[float], int]:
+    """Per stop recording: ms from its end of speech to the stop on the wire (spotted ones, all), and misses.
+
+    The stop of an utterance is the spotter's, sent while it was being fed (from its first chunk to its
+    ``thinking`` event), else the main decision's stop right after its ``heard`` event.
+    """
+    from gcs_voice.session.flight_log import read_flight
+    from gcs_voice.session.session_log import read_session_log
+
+    events = read_session_log(jsonl)
+    flight = read_flight(tlog)
+    spotted_l, all_l, missed = [], [], 0
+    for s in stops:
+        thinking = next((e for e in events if e["kind"] == "thinking" and e.get("source") == s.name), None)
+        heard = next((e for e in events if e["kind"] == "heard" and e.get("source") == s.name), None)
+        if thinking is None:
+            missed += 1
+            continue
+        end_t = thinking["utterance_end_t"]
+        fed_from = end_t - voiced_tail[s.name] - 1.5  # a recording here is at most ~1 s; with margin
+        stops_sent = [e for e in events if e["kind"] == "command" and e.get("action") == "stop" and e.get("sent_t")]
+        spot = [e for e in stops_sent if e.get("origin") == "spotter" and fed_from <= e["sent_t"] <= thinking["t"] + 0.5]
+        main = [e for e in stops_sent if e.get("origin") == "voice" and heard is not None
+                and heard["t"] - 0.01 <= e["sent_t"] <= heard["t"] + 1.0]
+        first = (spot or main or [None])[0]
+        if first is None:
+            missed += 1
+            continue
+        wire = next((sp for sp in flight.setpoints if sp.t_s >= first["sent_t"] - 0.002
+                     and abs(sp.vx_m_s) < 0.02 and abs(sp.vy_m_s) < 0.02 and abs(sp.vz_m_s) < 0.02), None)
+        if wire is None:
+            missed += 1
+            continue
+        ms = (wire.t_s - (end_t - voiced_tail[s.name])) * 1000
+        all_l.append(ms)
+        if first.get("origin") == "spotter":
+            spotted_l.append(ms)
+    return spotted_l, all_l, missed
+
+
+def write_section(path: Path, section: str) -> None:
+    """Replace the section that starts with ``section``'s heading (up to the next "## "), or append it."""
+    heading = section.splitlines()[0]
+    text = path.read_text(encoding="utf-8") if path.is_file() else ""
+    if heading in text:
+        before, rest = text.split(heading, 1)
+        nxt = rest.find("\n## ")
+        after = rest[nxt + 1:] if nxt >= 0 else ""
+        text = before + section + ("\n" + after if after else "")
+    else:
+        text = text.rstrip("\n") + ("\n\n" if text else "") + section
+    path.write_text(text, encoding="utf-8")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
