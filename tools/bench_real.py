@@ -84,11 +84,11 @@ def load_cache(engine: str) -> dict[str, dict]:
     return out
 
 
-def recognise_one(recognizer, audio: np.ndarray) -> tuple[Recognition, float]:
+def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Recognition, float]:
     """Stream 100 ms chunks as a microphone would; the time counted is from the end of the audio to the result."""
     pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     chunk = int(CHUNK_S * 16_000) * 2
-    stream = recognizer.start_stream("en")
+    stream = recognizer.start_stream(lang)
     for i in range(0, len(pcm), chunk):
         stream.accept(pcm[i:i + chunk])
     t0 = time.perf_counter()
