@@ -12,8 +12,10 @@ voices-with-cat at 12 dB) through the engine exactly as ``gcs-voice recognize`` 
 recognition and the time from the end of the audio to the result in
 ``out/bench/real/<engine>.jsonl`` (resumable; a changed file or changed engine settings are recognised again).
 ``tune`` replays the cache through the real matcher with candidate thresholds (temporary copies of
-``gcs_voice/understanding/thresholds.toml``) and keeps the one with the most commands right on dev such that
-non-commands acted on stay within the limits (<= 2 % clean, <= 3 % at 12 dB) and wrong actions <= 1 %.
+``gcs_voice/understanding/thresholds.toml``): on clean dev speech, non-command words and sentences acted on
+must stay within HALF their 2 % target (a setting that only just fits dev would not hold on test) and wrong
+actions within 1 %; among those, the best "right - 3 x wrong - 2 x acted on non-commands" over clean,
+kitchen 20 dB and kitchen 12 dB wins (at 12 dB no setting meets the targets on dev).
 ``report`` writes the tables with the count behind every percentage.
 """
 
@@ -46,8 +48,12 @@ CHUNK_S = 0.1
 #: engine label -> (registry engine, mode)
 ENGINES = {"whisper-score": ("whisper", "score"), "whisper": ("whisper", "grammar"), "sphinx": ("sphinx", "grammar")}
 MATCHER = "phonetic"
-#: the issue's limits, per condition group: non-commands acted on, wrong actions (fractions)
+#: the targets on held-out speakers, per condition group: non-commands acted on (words and sentences each),
+#: wrong actions (fractions of their counts)
 LIMITS = {"clean": (0.02, 0.01), "noisy": (0.03, 0.01)}
+#: tuning holds non-commands acted on to this fraction of their targets on dev, so that a choice that just
+#: fits dev still holds on test (the wrong-class target applies as it is)
+DEV_SAFETY = 0.5
 
 
 # -- recognise ----------------------------------------------------------------------------------------
@@ -78,11 +84,11 @@ def load_cache(engine: str) -> dict[str, dict]:
     return out
 
 
-def recognise_one(recognizer, audio: np.ndarray) -> tuple[Recognition, float]:
+def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Recognition, float]:
     """Stream 100 ms chunks as a microphone would; the time counted is from the end of the audio to the result."""
     pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     chunk = int(CHUNK_S * 16_000) * 2
-    stream = recognizer.start_stream("en")
+    stream = recognizer.start_stream(lang)
     for i in range(0, len(pcm), chunk):
         stream.accept(pcm[i:i + chunk])
     t0 = time.perf_counter()
@@ -200,8 +206,23 @@ def _with_thresholds(table: str, values: dict[str, float], directory: Path, name
     return path
 
 
+#: what a decision is worth in the objective: a wrong action is worse than none, an action on other speech too
+WRONG_COST, ACTED_COST = 3, 2
+
+
+def objective(c: Counts) -> int:
+    """Commands right, less the cost of wrong actions and of actions on non-commands."""
+    return c.right - WRONG_COST * c.wrong - ACTED_COST * c.others_acted
+
+
 def tune(engine: str, write: bool) -> int:
-    """Sweep the engine's thresholds on dev; keep the most commands right within the limits."""
+    """Sweep the engine's thresholds on dev.
+
+    The clean conditions (clean, kitchen 20 dB) must keep non-command words and sentences acted on
+    within half their target on dev (see DEV_SAFETY) and wrong actions within the target; among those
+    settings, the one with the best :func:`objective` summed over every tuned condition (12 dB included,
+    where no setting meets the targets) wins.
+    """
     import itertools
 
     table, grid = TUNED[engine]
@@ -216,21 +237,25 @@ def tune(engine: str, write: bool) -> int:
             per = {cond: count(dev, cond, cache, matcher) for cond in conditions}
             ok = True
             for cond, c in per.items():
-                acted_limit, wrong_limit = LIMITS["clean" if cond in ("clean", "kitchen20") else "noisy"]
-                ok &= c.others_acted <= acted_limit * c.others and c.wrong <= wrong_limit * c.commands
-            rows.append((values, ok, sum(c.right for c in per.values()), per))
-    print(f"dev split, conditions {', '.join(conditions)}; limits: non-commands acted on <= 2 % clean / 3 % noisy, "
-          f"wrong <= 1 %")
+                if cond not in ("clean", "kitchen20"):
+                    continue
+                acted_limit, wrong_limit = LIMITS["clean"]
+                acted_limit *= DEV_SAFETY
+                ok &= (c.words_acted <= acted_limit * c.words and c.sentences_acted <= acted_limit * c.sentences
+                       and c.wrong <= wrong_limit * c.commands)
+            rows.append((values, ok, sum(objective(c) for c in per.values()), per))
+    print(f"dev split, conditions {', '.join(conditions)}; clean limits on dev: non-command words and sentences acted "
+          f"on <= {100 * LIMITS['clean'][0] * DEV_SAFETY:g} % each, wrong <= {100 * LIMITS['clean'][1]:g} %; "
+          f"objective = right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on")
     feasible = sorted((r for r in rows if r[1]), key=lambda r: r[2], reverse=True)
-    for values, ok, right, per in feasible[:12]:
-        cells = "   ".join(f"{cond} {c.right}/{c.commands} right, {c.wrong} wrong, {c.others_acted}/{c.others} acted"
-                           for cond, c in per.items())
-        print(f"  {values}  right {right}: {cells}")
+    for values, ok, score, per in feasible[:10]:
+        cells = "   ".join(f"{cond} {c.right}/{c.commands} right, {c.wrong} wrong, {c.words_acted}/{c.words} words, "
+                           f"{c.sentences_acted}/{c.sentences} sentences" for cond, c in per.items())
+        print(f"  {values}  objective {score}: {cells}")
     if not feasible:
-        print("no setting meets the limits on dev", file=sys.stderr)
+        print("no setting meets the clean limits on dev", file=sys.stderr)
         return 1
-    # most right; among equals the strictest setting (largest thresholds)
-    best = max(feasible, key=lambda r: (r[2], *r[0].values()))
+    best = max(feasible, key=lambda r: (r[2], *r[0].values()))  # ties: the strictest setting
     print(f"chosen: [{table}] " + ", ".join(f"{k} = {v}" for k, v in best[0].items()))
     if write:
         THRESHOLDS_PATH.write_text(_with_thresholds(table, best[0], CACHE_DIR, "chosen").read_text(encoding="utf-8"),
@@ -266,8 +291,59 @@ def report(engines: list[str]) -> str:
             lines.append(f"| {cond} | {pct(c.right, c.commands)} | {pct(c.wrong, c.commands)} | "
                          f"{pct(c.words_acted, c.words)} | {pct(c.sentences_acted, c.sentences)} | {p50:.0f} / {p95:.0f} ms |")
         lines += ["", "Decision time: from the end of the audio to the recognition, as recorded while the cache was made"
-                  " (the machine was not idle: `tools/bench_latency.py` measures latency on an idle machine).", ""]
+                  " (the machine was loaded by other work; `python -m tools.bench_real timing` measures it idle).", ""]
+        variants = sorted(CACHE_DIR.glob(f"{engine}-*.jsonl"))
+        if variants:
+            dev = load_recordings(split="dev")
+            lines += [f"### Variants tried ({engine}, dev split, clean, shipped thresholds)", "",
+                      "Each made with `python -m tools.bench_real recognise --split dev --conditions clean --set KEY=VALUE "
+                      "--tag TAG`; TAG `wN` = `score_window_s=N` (0 = the utterance plus 0.3 s only).", "",
+                      "| variant | best phrase of the right class | commands right | wrong | non-commands acted on |",
+                      "| --- | --- | --- | --- | --- |"]
+            en = load_language("en")
+            cls_of = {ph.text: ph.action for ph in en.phrases}
+            for path in variants:
+                tag = path.stem.removeprefix(f"{engine}-")
+                rows = {}
+                for line in path.read_text(encoding="utf-8").splitlines():
+                    row = json.loads(line)
+                    rows[row["key"]] = row
+                c = count(dev, "clean", rows, matcher)
+                top = sum(1 for r in dev if r.kind == "command" and (row := rows.get(_key(r, "clean")))
+                          and row["hypotheses"] and cls_of.get(row["hypotheses"][0][0]) == r.action)
+                lines.append(f"| {tag} | {pct(top, c.commands)} | {pct(c.right, c.commands)} | {pct(c.wrong, c.commands)} | "
+                             f"{pct(c.others_acted, c.others)} |")
+            lines.append("")
     return "\n".join(lines) + "\n"
+
+
+def timing(engine: str, model: str | None, n: int) -> str:
+    """Decision time (end of audio to recognition) of ``n`` clean test-split files, alternating commands
+    and non-commands; run it on an idle machine. Returns a markdown section."""
+    import os
+
+    from gcs_voice.asr.registry import load_recognizer
+
+    name, mode = ENGINES[engine]
+    recognizer = load_recognizer(name, [load_language("en")], model=model, mode=mode)
+    recs = load_recordings(split="test")
+    commands = [r for r in recs if r.kind == "command"]
+    others = [r for r in recs if r.kind != "command"]
+    picked = [x for pair in zip(commands[::2], others[::2]) for x in pair][:n]
+    recognise_one(recognizer, condition_audio(picked[0], "clean"))  # warm-up, not counted
+    times, audio_s = [], 0.0
+    for rec in picked:
+        audio = condition_audio(rec, "clean")
+        _, dt = recognise_one(recognizer, audio)
+        times.append(dt * 1000)
+        audio_s += audio.size / 16_000
+    load = os.getloadavg()[0]
+    p50, p95 = statistics.median(times), float(np.percentile(times, 95))
+    return (f"## Decision time, {engine}\n\n`python -m tools.bench_real timing --engine {engine} --n {n}`: {len(times)} "
+            f"clean test-split files (commands and non-commands alternating), streamed in 100 ms chunks; time from "
+            f"the end of the audio to the recognition. Load average at the end: {load:.2f} (2 cores).\n\n"
+            f"| p50 | p95 | max | real-time factor (decision time / audio) |\n| --- | --- | --- | --- |\n"
+            f"| {p50:.0f} ms | {p95:.0f} ms | {max(times):.0f} ms | {sum(times) / 1000 / audio_s:.3f} |\n")
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -287,6 +363,10 @@ def main(argv: list[str] | None = None) -> int:
     tun.add_argument("--write", action="store_true", help="write the chosen value into thresholds.toml")
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
+    tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
+    tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
+    tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
+    tim.add_argument("--n", type=int, default=60)
     args = parser.parse_args(argv)
     global _TAG
     _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
@@ -306,6 +386,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.stage == "tune":
         return tune(args.engine, args.write)
+    if args.stage == "timing":
+        print(timing(args.engine, args.model if args.engine.startswith("whisper") else None, args.n))
+        return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
     print(f"wrote {DOC.relative_to(REPO)}")

@@ -13,11 +13,13 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
+from rapidfuzz.distance import Levenshtein
+
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.errors import GcsVoiceError
-from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds, transcript_limits
 from gcs_voice.domain.text import normalize_text
 
 __all__ = ["Matcher", "Candidate", "Ranking", "MatcherOptionError"]
@@ -119,6 +121,9 @@ class Matcher:
                 lang,
                 score,
             )
+        reason = self._transcript_reason(recognition, best) if rejecting else ""
+        if reason:
+            return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
             action=best.phrase.action,
             text=best.text,
@@ -193,6 +198,31 @@ class Matcher:
             f"'{best.text}' is not a command (nearest '{best.phrase.text}', "
             f"distance {best.distance:.2f} > {max_distance:.2f})"
         )
+
+    def _transcript_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """The engine's own transcript (Whisper scoring mode) must not say more than the command.
+
+        The margin says the phrase is nearly as likely as what Whisper heard; but a sentence that starts
+        with a command ("hacia adelante está el río") makes the phrase likely too. A command is said
+        with the command's words, so a heard word that sounds like no word of the winning class
+        (``word_max_distance``) and is no word of the dictionary at all means other speech.
+        """
+        limit = transcript_limits(recognition.engine, self.thresholds_path).get("word_max_distance")
+        heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
+        if limit is None or len(heard.split()) <= len(best.phrase.key.split()):
+            return ""  # no more words than the command itself: the margin has judged them
+        words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.key.split()}
+        vocabulary = {w for p in best.dictionary.phrases for w in p.key.split()}
+        self.prepare([best.dictionary])
+        for word in heard.split():
+            if word not in vocabulary and all(self.word_distance(word, w, best.dictionary) > limit for w in words):
+                return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
+                        f"{best.phrase.action} phrase")
+        return ""
+
+    def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
+        """Normalised distance between two single words (characters; the phonetic matcher: sounds)."""
+        return Levenshtein.normalized_distance(a, b)
 
     def _evidence_reason(self, recognition: Recognition) -> str:
         for key, limit in evidence_limits(recognition.engine, self.thresholds_path).items():

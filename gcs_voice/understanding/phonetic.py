@@ -78,6 +78,10 @@ class PhoneticMatcher(Matcher):
                     tokens = phoneme_tokens(p.key, voice)
                     self._phrase_codes[(voice, p.key)] = (*_encode(tokens), len(tokens))
 
+    def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
+        voice = self.voice(dictionary)
+        return phonetic_distance(phoneme_tokens(a, voice), phoneme_tokens(b, voice))
+
     def distance(self, heard: str, phrase: Phrase, dictionary: Dictionary) -> float:
         voice = self.voice(dictionary)
         heard_tokens = phoneme_tokens(heard, voice)

@@ -14,7 +14,8 @@ from typing import Any
 
 from gcs_voice.errors import GcsVoiceError
 
-__all__ = ["THRESHOLDS_PATH", "ThresholdsError", "load_thresholds", "matcher_thresholds", "evidence_limits"]
+__all__ = ["THRESHOLDS_PATH", "ThresholdsError", "load_thresholds", "matcher_thresholds", "evidence_limits",
+           "transcript_limits"]
 
 THRESHOLDS_PATH = Path(__file__).resolve().parent / "thresholds.toml"
 
@@ -61,3 +62,8 @@ def evidence_limits(engine: str | None, path: Path = THRESHOLDS_PATH) -> dict[st
     return _numbers(load_thresholds(path).get("evidence", {}).get(engine, {}), f"evidence.{engine}")
 
 
+def transcript_limits(engine: str | None, path: Path = THRESHOLDS_PATH) -> dict[str, float]:
+    """Limits on the engine's own transcript (``Recognition.transcript``); empty when none are set."""
+    if not engine:
+        return {}
+    return _numbers(load_thresholds(path).get("transcript", {}).get(engine, {}), f"transcript.{engine}")
