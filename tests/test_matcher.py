@@ -225,3 +225,23 @@ def test_scoring_margin_is_data(tmp_path) -> None:
     heard = _scored("go down", "go down", shipped + 0.01)
     assert get_matcher("phonetic").decide(heard, [EN]).action == "down"
     assert get_matcher("phonetic", thresholds_path=strict).decide(heard, [EN]).action is None
+
+
+@pytest.mark.parametrize(("phrase", "transcript", "dictionary"), [
+    ("hacia adelante", "Hacia adelante está el río", "es"),  # a sentence that starts with a command
+    ("derecha", "Muestra la derecha de la foto", "es"),
+    ("go right", "Go right now and then home", "en"),
+])
+def test_a_transcript_that_says_more_than_the_command_does_nothing(phrase: str, transcript: str, dictionary: str) -> None:
+    """Within the margin, but Whisper heard more words than the command, and one of them is no command word."""
+    decision = get_matcher("phonetic").decide(_scored(phrase, transcript, 0.0), [ES if dictionary == "es" else EN])
+    assert decision.action is None and "is in no" in decision.reason, decision
+
+
+@pytest.mark.parametrize(("phrase", "transcript", "action"), [
+    ("stop", "Stop the drone now", "stop"),   # skip words and dictionary words are fine
+    ("up", "Ah", "up"),                        # a misheard word no longer than the command: the margin judged it
+    ("go left", "Go lift", "go_left"),
+])
+def test_a_command_with_filler_or_misheard_words_still_acts(phrase: str, transcript: str, action: str) -> None:
+    assert get_matcher("phonetic").decide(_scored(phrase, transcript, 0.0), [EN]).action == action
