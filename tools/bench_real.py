@@ -367,6 +367,7 @@ def main(argv: list[str] | None = None) -> int:
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     tim.add_argument("--n", type=int, default=60)
+    tim.add_argument("--out", type=Path, help="also write the section to this file (docs/bench/real_timing.md)")
     args = parser.parse_args(argv)
     global _TAG
     _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
@@ -387,7 +388,10 @@ def main(argv: list[str] | None = None) -> int:
     if args.stage == "tune":
         return tune(args.engine, args.write)
     if args.stage == "timing":
-        print(timing(args.engine, args.model if args.engine.startswith("whisper") else None, args.n))
+        text = timing(args.engine, args.model if args.engine.startswith("whisper") else None, args.n)
+        print(text)
+        if args.out:
+            args.out.write_text(text, encoding="utf-8")
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
