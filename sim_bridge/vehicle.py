@@ -12,12 +12,14 @@ from __future__ import annotations
 import enum
 import math
 from dataclasses import dataclass, field
-from typing import Any
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
+from sim_bridge.control import ControlTarget
+from sim_bridge.fdm import RigidBodyState
 from sim_bridge.fence import FENCE_BRAKE_ACCEL_M_S2, Fence
 from sim_bridge.frames import wrap_pi
+from sim_bridge.multicopter import Multicopter
 from sim_bridge.setpoints import Setpoint
 
 __all__ = ["Behaviour", "Fence", "Vehicle", "VehicleEvent", "VehicleLimits"]   # Fence re-exported
@@ -81,7 +83,7 @@ class _Hold:
 class Vehicle:
     """Behaviours over a ``sim_bridge.multicopter.Multicopter``; ``step(dt_s)`` returns what happened."""
 
-    multicopter: Any
+    multicopter: Multicopter
     limits: VehicleLimits = field(default_factory=VehicleLimits)
     fence: Fence = field(default_factory=Fence)
     ceiling_m: float | None = None          # highest gear altitude (m above home) before the vehicle touches the ceiling
@@ -93,7 +95,7 @@ class Vehicle:
     fence_stops: int = 0
 
     def __post_init__(self) -> None:
-        self._state: Any = None
+        self._state: RigidBodyState | None = None
         self._hold = _Hold(yaw_rad=self.state.yaw_rad)
         self._yaw_target_rad: float = self.state.yaw_rad
         self._takeoff_alt_m = 0.0
@@ -108,7 +110,7 @@ class Vehicle:
 
     # ----------------------------------------------------------------- state
     @property
-    def state(self) -> Any:
+    def state(self) -> RigidBodyState:
         """The physics state, read once per tick (building it costs more than everything that reads it)."""
         if self._state is None:
             self._state = self.multicopter.state
@@ -210,8 +212,6 @@ class Vehicle:
     # ----------------------------------------------------------------- the loop
     def step(self, dt_s: float) -> list[VehicleEvent]:
         """Advance the physics by ``dt_s`` under the current behaviour."""
-        from sim_bridge.control import ControlTarget
-
         events: list[VehicleEvent] = []
         state = self.state
         pos = (float(state.pos_ned_m[0]), float(state.pos_ned_m[1]), float(state.pos_ned_m[2]))
@@ -257,9 +257,7 @@ class Vehicle:
         self._yaw_target_rad = wrap_pi(self._yaw_target_rad + error)
         return self._yaw_target_rad
 
-    def _hold_target(self, pos: tuple[float, float, float], vel_now: Any) -> Any:
-        from sim_bridge.control import ControlTarget
-
+    def _hold_target(self, pos: tuple[float, float, float], vel_now: tuple[float, float, float]) -> ControlTarget:
         self._yaw_target_rad = self._hold.yaw_rad
         if self._hold.point_ned_m is None:
             if math.hypot(float(vel_now[0]), float(vel_now[1])) > HOLD_CAPTURE_SPEED_M_S:
@@ -267,9 +265,7 @@ class Vehicle:
             self._hold.point_ned_m = pos
         return ControlTarget(pos_ned_m=self._hold.point_ned_m, yaw_rad=self._hold.yaw_rad)
 
-    def _takeoff_target(self, pos: tuple[float, float, float]) -> tuple[Any, bool]:
-        from sim_bridge.control import ControlTarget
-
+    def _takeoff_target(self, pos: tuple[float, float, float]) -> tuple[ControlTarget, bool]:
         if self.time_s - self._takeoff_started_s < self.limits.takeoff_delay_s:
             return ControlTarget(vel_ned_m_s=(0.0, 0.0, 0.0), yaw_rad=self._hold.yaw_rad), False
         remaining = self._takeoff_alt_m - (-pos[2])
@@ -278,9 +274,7 @@ class Vehicle:
         climb = min(self.limits.takeoff_climb_m_s, max(0.2, POSITION_TO_VELOCITY_PER_S * remaining))
         return ControlTarget(vel_ned_m_s=(0.0, 0.0, -climb), yaw_rad=self._hold.yaw_rad), False
 
-    def _velocity_target(self, pos: tuple[float, float, float], dt_s: float) -> Any:
-        from sim_bridge.control import ControlTarget
-
+    def _velocity_target(self, pos: tuple[float, float, float], dt_s: float) -> ControlTarget:
         sp = self.setpoint
         assert sp is not None
         vel = list(sp.vel_ned_m_s)
@@ -308,9 +302,7 @@ class Vehicle:
         self._hold.yaw_rad = yaw
         return ControlTarget(vel_ned_m_s=tuple(vel), yaw_rad=yaw)
 
-    def _land_target(self, pos: tuple[float, float, float]) -> Any:
-        from sim_bridge.control import ControlTarget
-
+    def _land_target(self, pos: tuple[float, float, float]) -> ControlTarget:
         if self.landed:
             return ControlTarget(vel_ned_m_s=(0.0, 0.0, self.limits.land_speed_m_s), yaw_rad=self._hold.yaw_rad)
         if self._hold.point_ned_m is None:
@@ -323,9 +315,7 @@ class Vehicle:
                self.limits.land_speed_m_s)
         return ControlTarget(vel_ned_m_s=vel, yaw_rad=self._hold.yaw_rad)
 
-    def _rtl_target(self, pos: tuple[float, float, float], events: list[VehicleEvent]) -> Any:
-        from sim_bridge.control import ControlTarget
-
+    def _rtl_target(self, pos: tuple[float, float, float], events: list[VehicleEvent]) -> ControlTarget:
         return_alt = self.rtl_alt_m
         if self._rtl_phase == "climb":
             if -pos[2] >= return_alt - 0.1:

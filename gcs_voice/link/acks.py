@@ -11,7 +11,7 @@ from dataclasses import dataclass, field
 
 from pymavlink.dialects.v20 import common as mavlink
 
-from gcs_voice.link.state import CommandAck, StatusText, result_name
+from gcs_voice.link.state import CommandAck, StatusText, enum_name, result_name
 
 __all__ = ["OperationResult", "AckCollector", "ACCEPTED", "REFUSED", "TIMED_OUT", "command_name"]
 
@@ -19,8 +19,7 @@ ACCEPTED, REFUSED, TIMED_OUT = "accepted", "refused", "timed out"
 
 
 def command_name(command: int) -> str:
-    entry = mavlink.enums["MAV_CMD"].get(command)
-    return entry.name.removeprefix("MAV_CMD_") if entry else f"COMMAND_{command}"
+    return enum_name("MAV_CMD", command, unknown="COMMAND")
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ from pymavlink.dialects.v20 import common as mavlink
 from gcs_voice.link.autopilots import AutopilotProfile, profile_for
 from gcs_voice.link.setpoints import wrap_deg
 
-__all__ = ["VehicleState", "VehicleStateTracker", "StatusText", "CommandAck", "result_name", "landed_state_name"]
+__all__ = ["VehicleState", "VehicleStateTracker", "StatusText", "CommandAck", "enum_name", "result_name", "landed_state_name"]
 
 STATUSTEXT_CHUNK_CHARS = 50
 #: how autopilots begin the texts that say why they cannot arm yet (ArduPilot, PX4)
@@ -26,15 +26,20 @@ PREARM_PREFIXES = ("PreArm:", "Arm:", "Preflight Fail:")  # PX4's "Arming denied
 _CHUNK_STALE_S = 2.0
 
 
+def enum_name(enum: str, value: int, unknown: str | None = None) -> str:
+    """A MAVLink enum value's name without the enum's prefix ("ACCEPTED" for MAV_RESULT 0); an unknown value
+    is ``<unknown>_<value>`` ("RESULT_42"; ``unknown`` defaults to the enum's name less "MAV_")."""
+    entry = mavlink.enums[enum].get(value)
+    return entry.name.removeprefix(enum + "_") if entry else f"{unknown or enum.removeprefix('MAV_')}_{value}"
+
+
 def result_name(result: int) -> str:
     """MAV_RESULT name without its prefix ("ACCEPTED", "FAILED", ...)."""
-    entry = mavlink.enums["MAV_RESULT"].get(result)
-    return entry.name.removeprefix("MAV_RESULT_") if entry else f"RESULT_{result}"
+    return enum_name("MAV_RESULT", result)
 
 
 def landed_state_name(value: int) -> str:
-    entry = mavlink.enums["MAV_LANDED_STATE"].get(value)
-    return entry.name.removeprefix("MAV_LANDED_STATE_") if entry else f"LANDED_STATE_{value}"
+    return enum_name("MAV_LANDED_STATE", value)
 
 
 @dataclass(frozen=True)
