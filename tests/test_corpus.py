@@ -25,6 +25,8 @@ def _digest(folder: Path) -> str:
     return h.hexdigest()
 
 
+pytestmark = pytest.mark.slow  # ~60 s: espeak-ng, Piper and sox make every corpus part
+
 @pytest.fixture(scope="module")
 def tiny(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("corpus")
