@@ -37,6 +37,7 @@ from gcs_voice.asr.sphinx_engine import SphinxRecognizer
 from gcs_voice.audio.sources import read_wav
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import MATCHERS, get_matcher
+from tools.bench_real import Counts
 
 CACHE = REPO / "out" / "bench" / "sphinx_real"
 #: Bumped when the engine's front end changes (cached recognitions of an older one are not reused).
@@ -125,31 +126,13 @@ def recognise_all(speech: Path, rows: list[Row], garbage: str, weight: float) ->
     return {p: _from_json(d) for p, d in cache.items()}
 
 
-@dataclass
-class Counts:
-    commands: int = 0
-    right: int = 0
-    wrong: int = 0
-    words: int = 0
-    words_acted: int = 0
-    sentences: int = 0
-    sentences_acted: int = 0
+def cells(c: Counts) -> list[str]:
+    """Right, wrong, non-commands, words and sentences acted on, as table cells."""
+    def pct(n: int, d: int) -> str:
+        return f"{100 * n / d:.1f} % ({n}/{d})" if d else "-"
 
-    @property
-    def others(self) -> int:
-        return self.words + self.sentences
-
-    @property
-    def others_acted(self) -> int:
-        return self.words_acted + self.sentences_acted
-
-    def cells(self) -> list[str]:
-        def pct(n: int, d: int) -> str:
-            return f"{100 * n / d:.1f} % ({n}/{d})" if d else "-"
-
-        return [pct(self.right, self.commands), pct(self.wrong, self.commands),
-                pct(self.others_acted, self.others), pct(self.words_acted, self.words),
-                pct(self.sentences_acted, self.sentences)]
+    return [pct(c.right, c.commands), pct(c.wrong, c.commands), pct(c.others_acted, c.others),
+            pct(c.words_acted, c.words), pct(c.sentences_acted, c.sentences)]
 
 
 def evaluate(rows: list[Row], recs: dict[str, Recognition], matcher: str, floor: float, split: str) -> Counts:
@@ -208,7 +191,7 @@ def main(argv: list[str] | None = None) -> int:
              "| setting | matcher | min_confidence | dev right | dev wrong | dev non-commands acted on "
              "| words | sentences |", "|---|---|---|---|---|---|---|---|"]
     for garbage, weight, matcher, floor, dev, _ in results:
-        lines.append(f"| {setting_label(garbage, weight)} | {matcher} | {floor:g} | " + " | ".join(dev.cells()) + " |")
+        lines.append(f"| {setting_label(garbage, weight)} | {matcher} | {floor:g} | " + " | ".join(cells(dev)) + " |")
     allowed = [r for r in results if r[4].others_acted <= MAX_NONCOMMAND_ACTED * r[4].others]
     if allowed:
         chosen = max(allowed, key=lambda r: (r[4].right - WRONG_COST * r[4].wrong, -r[4].others_acted))
@@ -224,12 +207,12 @@ def main(argv: list[str] | None = None) -> int:
               "", "| split | commands right | wrong action | non-commands acted on | words | sentences |",
               "|---|---|---|---|---|---|"]
     for split in ("dev", "test"):
-        lines.append(f"| {split} | " + " | ".join(evaluate(rows, recs, matcher, floor, split).cells()) + " |")
+        lines.append(f"| {split} | " + " | ".join(cells(evaluate(rows, recs, matcher, floor, split))) + " |")
     lines += ["", "Every matcher at the chosen recogniser setting and floor, on test:", "",
               "| matcher | commands right | wrong action | non-commands acted on | words | sentences |",
               "|---|---|---|---|---|---|"]
     for m in args.matchers.split(","):
-        lines.append(f"| {m} | " + " | ".join(evaluate(rows, recs, m, floor, "test").cells()) + " |")
+        lines.append(f"| {m} | " + " | ".join(cells(evaluate(rows, recs, m, floor, "test"))) + " |")
     text = "\n".join(lines) + "\n"
     print(text)
     if args.write:
