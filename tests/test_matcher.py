@@ -245,3 +245,10 @@ def test_a_transcript_that_says_more_than_the_command_does_nothing(phrase: str, 
 ])
 def test_a_command_with_filler_or_misheard_words_still_acts(phrase: str, transcript: str, action: str) -> None:
     assert get_matcher("phonetic").decide(_scored(phrase, transcript, 0.0), [EN]).action == action
+
+
+def test_a_command_whisper_wrote_as_two_words_still_acts() -> None:
+    """Whisper splits a word it does not know ("de tenerse" for "detenerse"): joined, it is the command."""
+    assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse", 0.0), [ES]).action == "stop"
+    # joining is no loophole: the joined pair must itself be a word of the class
+    assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse en casa", 0.0), [ES]).action is None

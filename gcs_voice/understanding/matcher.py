@@ -214,8 +214,19 @@ class Matcher:
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.key.split()}
         vocabulary = {w for p in best.dictionary.phrases for w in p.key.split()}
         self.prepare([best.dictionary])
-        for word in heard.split():
-            if word not in vocabulary and all(self.word_distance(word, w, best.dictionary) > limit for w in words):
+
+        def fits(word: str) -> bool:
+            return word in vocabulary or any(self.word_distance(word, w, best.dictionary) <= limit for w in words)
+
+        heard_words = heard.split()
+        i = 0
+        while i < len(heard_words):
+            word = heard_words[i]
+            if fits(word):
+                i += 1
+            elif i + 1 < len(heard_words) and fits(word + heard_words[i + 1]):
+                i += 2  # Whisper split one word in two ("de tenerse" for "detenerse")
+            else:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
         return ""
