@@ -255,28 +255,43 @@ class LinkChannel:
             hold = Setpoint(0.0, 0.0, 0.0, yaw, state.north_m, state.east_m, state.down_m)  # here, position held
         return lambda _state: hold
 
-    def _stream_tick(self) -> None:
+    def stream_now(self, source: SetpointSource, decided_s: float | None = None) -> Setpoint | None:
+        """Stream ``source`` from now on and send its setpoint at once, in the caller's thread: a new
+        command does not wait up to a tick. The same route as the stream's ticks (link lost: nothing sent).
+
+        ``decided_s``: see ``send_setpoint`` (default: now, before ``source`` decides). Returns the
+        setpoint ``source`` decided (None while no vehicle was heard)."""
+        if decided_s is None:
+            decided_s = time.time()
+        with self._lock:
+            self._source = source
+        return self._stream_tick(decided_s)
+
+    def _stream_tick(self, decided_s: float | None = None) -> Setpoint | None:
+        """Ask the source for the setpoint and send it: the one route a streamed setpoint takes to the wire."""
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
         if source is None or state.system_id is None:
-            return
-        decided_s = time.time()  # before the source decides: see send_setpoint
+            return None
+        if decided_s is None:
+            decided_s = time.time()  # before the source decides: see send_setpoint
         if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
             try:
-                source(state)
+                return source(state)
             except Exception:
-                pass
-            return
+                return None
         try:
             setpoint = source(state)
         except Exception as exc:  # a broken source must not leave the last velocity running
             self.on_event(f"setpoint source failed ({exc}); holding")
             setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
         self.send_setpoint(setpoint, decided_s)
+        return setpoint
 
     def send_setpoint(self, setpoint: Setpoint, decided_s: float | None = None) -> bool:
-        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
-        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then.
+        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; a session sends through
+        ``stream_now`` instead, so that its setpoints have one route). Nothing is sent while no vehicle is
+        heard or the link is lost: returns False then.
 
         ``decided_s`` (UNIX time read *before* the setpoint was computed) stamps the .tlog record, so the
         log orders a setpoint by when it was decided: one stamped after a source switched to stop was

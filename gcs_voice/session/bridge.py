@@ -2,7 +2,9 @@
 
 Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) and the keyboard call
 ``Bridge.submit``; the link's own thread streams ``ActionMapper.setpoint`` at 10 Hz; this loop
-(``Bridge.run``) takes one submitted action at a time and watches the link. Rules, in order:
+(``Bridge.run``) takes one submitted action at a time and watches the link. A setpoint has one route:
+the mapper decides it and the link sends it (``stream_now`` sends a new command's first one at once,
+the stream the rest); the bridge never sends one itself. Rules, in order:
 
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
@@ -241,12 +243,10 @@ class Bridge:
             # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
             return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
                                          "say 'take off' to fly by voice again")
-        decided_s = time.time()  # before the mapper decides (see VehicleLink.send_setpoint)
+        decided_s = time.time()  # before the mapper decides (see LinkChannel.send_setpoint)
         mapped = self.mapper.apply(action, state)
-        if not self.link.streaming:
-            self.link.start_stream(self.mapper.setpoint)
-        setpoint = self.mapper.setpoint(state)
-        self.link.send_setpoint(setpoint, decided_s)  # at once, not at the next 10 Hz tick
+        # the link streams the mapper's setpoint; this one goes at once, not at the next 10 Hz tick
+        setpoint = self.link.stream_now(self.mapper.setpoint, decided_s)
         sent_t = time.time()
         request.accepted = True
         d = request.decision
@@ -255,8 +255,9 @@ class Bridge:
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
             origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
-            setpoint={"forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
-                      "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
+            setpoint=None if setpoint is None else {
+                "forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
+                "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
             utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
         )
         return None
@@ -326,9 +327,7 @@ class Bridge:
             if state.armed and state.link_ok and in_velocity_mode and self._busy != "land":
                 if self.mapper.action != "stop":
                     self.mapper.apply("stop", state)
-                if not self.link.streaming:
-                    self.link.start_stream(self.mapper.setpoint)
-                self.link.send_setpoint(self.mapper.setpoint(state))
+                self.link.stream_now(self.mapper.setpoint)
                 self.bus.emit("command", "stop (end of session)", action="stop", origin="shutdown",
                               sent_t=time.time())
                 time.sleep(FINAL_STOP_S)
