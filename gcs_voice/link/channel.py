@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import Any, Self
+from typing import TYPE_CHECKING, Any, Self
 
 from pymavlink.dialects.v20 import common as mavlink
 
@@ -26,6 +26,9 @@ from gcs_voice.link.security import LinkSecurity, SecurityHooks
 from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
 from gcs_voice.link.tlog import TlogWriter
 from gcs_voice.settings import Settings, load_settings
+
+if TYPE_CHECKING:  # annotations only: mavutil is imported by link.connection, after MAVLINK20 is set
+    from pymavlink import mavutil
 
 __all__ = ["LinkChannel", "SetpointSource"]
 
@@ -48,7 +51,7 @@ class LinkChannel:
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
-        self._conn: Any = None
+        self._conn: mavutil.mavfile | None = None
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
         self._send_lock = threading.Lock()
@@ -153,7 +156,7 @@ class LinkChannel:
             self.read_errors += 1
             time.sleep(0.01)
 
-    def _take(self, msg: Any) -> None:
+    def _take(self, msg: mavlink.MAVLink_message) -> None:
         if msg.get_type() == "BAD_DATA":
             return
         if self.tlog is not None:
@@ -194,7 +197,7 @@ class LinkChannel:
 
     # ---- sending, and the answers ------------------------------------------------------------------
     @property
-    def mav(self) -> Any:
+    def mav(self) -> mavlink.MAVLink:
         """The MAVLink encoder of this connection: ``link.send(link.mav.command_long_encode(...))``."""
         return self._conn.mav
 
@@ -203,7 +206,7 @@ class LinkChannel:
         """Open and not yet closing: an operation waiting on the vehicle gives up when this turns False."""
         return self._running
 
-    def send(self, msg: Any, time_s: float | None = None) -> None:
+    def send(self, msg: mavlink.MAVLink_message, time_s: float | None = None) -> None:
         """Send one message (any thread) and log it; ``time_s`` stamps the .tlog record (default: now)."""
         with self._send_lock:
             try:

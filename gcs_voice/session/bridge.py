@@ -31,10 +31,14 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.link.acks import OperationResult
 from gcs_voice.link.readiness import assess
+from gcs_voice.link.state import VehicleState
+from gcs_voice.link.vehicle_link import VehicleLink
 from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
@@ -65,7 +69,7 @@ class Request:
     accepted: bool = False
 
 
-def status_of(state: Any, action: str | None) -> dict[str, Any]:
+def status_of(state: VehicleState | None, action: str | None) -> dict[str, Any]:
     """The view's vehicle panel from a link VehicleState (None-safe)."""
     if state is None:
         return {"link": "waiting"}
@@ -82,7 +86,7 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
             "ready": ready}
 
 
-def _on_ground(state: Any) -> bool:
+def _on_ground(state: VehicleState) -> bool:
     """Landed by the autopilot's own word (EXTENDED_SYS_STATE), else by height above home."""
     if state.landed_state is not None:
         return state.landed_state == "ON_GROUND"
@@ -93,7 +97,7 @@ def _on_ground(state: Any) -> bool:
 class Bridge:
     """Owns the mapper's current action and the vehicle operations; ``run()`` until ``finish()``."""
 
-    def __init__(self, link: Any, mapper: Any, bus: EventBus, takeoff_m: float) -> None:
+    def __init__(self, link: VehicleLink, mapper: ActionMapper, bus: EventBus, takeoff_m: float) -> None:
         self.link = link
         self.mapper = mapper
         self.bus = bus
@@ -297,7 +301,7 @@ class Bridge:
         finally:
             self._busy = None
 
-    def _operation(self, action: str) -> Any:
+    def _operation(self, action: str) -> OperationResult:
         """Run one flight operation on the link (blocking); returns its OperationResult."""
         link = self.link
         if action == "take_off":
