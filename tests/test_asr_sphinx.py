@@ -126,7 +126,7 @@ def test_words_without_pronunciation_are_named(tmp_path, caplog):
         recognizer = load_recognizer("sphinx", [load_dictionary(path)])
     assert recognizer.missing_words == ("zorblax",)
     assert "zorblax" in caplog.text
-    assert "zorblax" not in recognizer._grammar()
+    assert "zorblax" not in recognizer.jsgf
 
 
 def test_bad_model_path(tmp_path):

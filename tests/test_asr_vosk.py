@@ -55,7 +55,7 @@ def test_korean_commands(grammar, tmp_path, said, action):
 
 
 def test_unknown_token_of_the_korean_model(grammar):
-    (model,) = grammar._models.values()
+    (model,) = grammar.language_models.values()
     assert model.unknown == "<UNK>"  # vosk-model-small-ko uses <UNK>, not [unk]
     assert model.grammar[-1] == "<UNK>"
     assert grammar.missing_words == ()
@@ -70,7 +70,7 @@ def test_words_missing_from_the_vocabulary_are_named_and_their_phrases_left_out(
         recognizer = load_recognizer("vosk", [load_dictionary(path)])
     assert recognizer.missing_words == ("오른쪽으로",)
     assert "오른쪽으로" in caplog.text
-    (model,) = recognizer._models.values()
+    (model,) = recognizer.language_models.values()
     assert "오른쪽으로" not in model.grammar and "오른쪽" in model.grammar
 
 

@@ -12,7 +12,7 @@ if sys.argv[1] == "wheel":
 from gcs_voice.understanding import phonemes
 for text, voice in [("go right", "en-us"), ("turn counterclockwise", "en-us"), ("gira a la derecha", "es")]:
     print(phonemes.ipa(text, voice))
-print(phonemes._lib._name)
+print(phonemes.library_name())
 """
 
 

@@ -19,7 +19,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
 
-from tools import bench_accuracy as bench
+from tools import bench_accuracy_data as bench
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER
 

@@ -65,6 +65,8 @@ class SphinxRecognizer:
         if self.missing_words:
             log.warning("sphinx: dictionary words missing from the pronunciation dictionary "
                         "(phrases with them cannot be recognised): %s", ", ".join(self.missing_words))
+        #: the JSGF grammar the decoder searches (grammar mode; None in free mode): what can be heard at all
+        self.jsgf: str | None = None
         if mode == "free":
             lm = model_dir / "en-us.lm.bin"
             if not lm.is_file():
@@ -72,7 +74,8 @@ class SphinxRecognizer:
             self.decoder.add_lm_file("free", str(lm))
             self.search = "free"
         else:
-            self.decoder.add_jsgf_string("grammar", self._grammar())
+            self.jsgf = self._grammar()
+            self.decoder.add_jsgf_string("grammar", self.jsgf)
             self.search = "grammar"
         self.decoder.activate_search(self.search)
         # Every utterance starts from the model's initial cepstral mean and fresh noise statistics

@@ -29,7 +29,7 @@ from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
 from gcs_voice.domain.text import normalize_text
 
-__all__ = ["VoskRecognizer", "VoskStream", "unknown_token_for"]
+__all__ = ["VoskRecognizer", "VoskStream", "LanguageModel", "unknown_token_for"]
 
 log = logging.getLogger(__name__)
 #: Tokens tried, in order, when the model is not in the unknown-token table.
@@ -45,7 +45,7 @@ def unknown_token_for(model_dir: Path, find_word) -> str | None:
     return next((tok for tok in UNKNOWN_CANDIDATES if find_word(tok) >= 0), None)
 
 
-class _LanguageModel:
+class LanguageModel:
     """One loaded Vosk model with the grammar for one dictionary."""
 
     def __init__(self, dictionary: Dictionary, model_dir: Path, mode: str):
@@ -132,7 +132,7 @@ class VoskRecognizer:
         if model is not None and len(dictionaries) > 1:
             raise ModelError("a Vosk model knows one language: give one dictionary with --model")
         self.mode = mode
-        self._models: dict[str, _LanguageModel] = {}
+        self._models: dict[str, LanguageModel] = {}
         for dictionary in dictionaries:
             if model is not None:
                 model_dir = check_vosk_model_dir(model)
@@ -141,13 +141,18 @@ class VoskRecognizer:
                 if found is None:
                     raise ModelError(vosk_model_hint(dictionary.language))
                 model_dir = check_vosk_model_dir(found)
-            self._models[dictionary.language] = _LanguageModel(dictionary, model_dir, mode)
+            self._models[dictionary.language] = LanguageModel(dictionary, model_dir, mode)
         self.languages = tuple(self._models)
         self.missing_words = tuple(w for m in self._models.values() for w in m.missing_words)
 
     @classmethod
     def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
         return cls(dictionaries, model=model, mode=mode)
+
+    @property
+    def language_models(self) -> dict[str, LanguageModel]:
+        """Language code -> its loaded model, grammar and unknown token (a copy: what a session can hear)."""
+        return dict(self._models)
 
     def start_stream(self, lang: str | None = None) -> VoskStream:
         if lang in (None, "auto"):
@@ -162,7 +167,7 @@ class VoskRecognizer:
 class VoskStream:
     """One utterance; PCM goes to Kaldi as it arrives (true streaming)."""
 
-    def __init__(self, recognizer: VoskRecognizer, model: _LanguageModel):
+    def __init__(self, recognizer: VoskRecognizer, model: LanguageModel):
         self._name = recognizer.name
         self._model = model
         self._samples = 0

@@ -12,11 +12,15 @@ import argparse
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from gcs_voice.errors import LinkError
 from gcs_voice.link.signing import GroundSigning, TimestampStore, key_from_flag
 from gcs_voice.link.vehicle_lock import VehicleLock
+
+if TYPE_CHECKING:  # annotations only: mavutil is imported by link.connection, after MAVLINK20 is set
+    from pymavlink import mavutil
+    from pymavlink.dialects.v20 import common as mavlink
 
 __all__ = ["LinkSecurity", "SecurityHooks", "add_security_arguments", "security_from_args"]
 
@@ -34,14 +38,14 @@ class LinkSecurity:
         if self.require_signed and self.key is None:
             raise LinkError("--require-signed needs --signing-key: without a key nothing can be checked")
 
-    def attach(self, conn: Any, on_event: Callable[[str], None]) -> "SecurityHooks":
+    def attach(self, conn: mavutil.mavfile, on_event: Callable[[str], None]) -> "SecurityHooks":
         return SecurityHooks(self, conn, on_event)
 
 
 class SecurityHooks:
     """What ``LinkSecurity`` does on one open connection."""
 
-    def __init__(self, security: LinkSecurity, conn: Any, on_event: Callable[[str], None]) -> None:
+    def __init__(self, security: LinkSecurity, conn: mavutil.mavfile, on_event: Callable[[str], None]) -> None:
         self.on_event = on_event
         self.signing: GroundSigning | None = None
         self.lock: VehicleLock | None = VehicleLock(conn) if security.lock_vehicle else None
@@ -50,7 +54,7 @@ class SecurityHooks:
                                          TimestampStore(security.timestamp_path), on_event)
             self.signing.attach(conn)
 
-    def observe(self, msg: Any, vehicle_system_id: int | None) -> None:
+    def observe(self, msg: mavlink.MAVLink_message, vehicle_system_id: int | None) -> None:
         if self.lock is not None:
             line = self.lock.observe(msg, vehicle_system_id)
             if line:

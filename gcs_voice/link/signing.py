@@ -22,11 +22,14 @@ import threading
 import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from gcs_voice.errors import LinkError
+
+if TYPE_CHECKING:
+    from pymavlink import mavutil
 
 __all__ = ["GroundSigning", "TimestampStore", "key_from_flag", "passphrase_key", "timestamp_now",
            "verify_signature", "default_timestamp_path"]
@@ -119,7 +122,7 @@ class _ClockedSigning(mavlink.MAVLinkSigning):
             self._timestamp = max(self._timestamp, int(value))
 
 
-def verify_signature(mav: Any, msgbuf: bytearray, src_system: int, src_component: int) -> bool:
+def verify_signature(mav: mavlink.MAVLink, msgbuf: bytearray, src_system: int, src_component: int) -> bool:
     """``mavlink_signature_check`` of the C library: the signature first, then the stream's timestamp."""
     signing = mav.signing
     data = bytes(msgbuf)
@@ -153,18 +156,18 @@ class GroundSigning:
         self._save_failed = False
         self._warned_unsigned = self._warned_other_key = False
 
-    def attach(self, conn: Any) -> None:
+    def attach(self, conn: mavutil.mavfile) -> None:
         self.state = _ClockedSigning(self.store.floor())
         conn.mav.signing = self.state
         conn.setup_signing(self.key, sign_outgoing=True, allow_unsigned_callback=self._allow_unsigned)
         conn.mav.check_signature = functools.partial(verify_signature, conn.mav)
         self._save(clean=False)
 
-    def _allow_unsigned(self, _mav: Any, msg_id: int) -> bool:
+    def _allow_unsigned(self, _mav: mavlink.MAVLink, msg_id: int) -> bool:
         """Called for unsigned packets and packets not signed with our key (pymavlink's callback)."""
         return not self.require_signed or msg_id in UNSIGNED_OK
 
-    def observe(self, msg: Any, vehicle_system_id: int | None) -> None:
+    def observe(self, msg: mavlink.MAVLink_message, vehicle_system_id: int | None) -> None:
         """A message that got through: say once if the vehicle does not sign with our key; save now and then."""
         if self.state is None:
             return

@@ -177,7 +177,7 @@ class VehicleStateTracker:
             return self.state
         return replace(self.state, link_ok=ok, ground_clearance_m=clearance)
 
-    def update(self, msg: Any, now_s: float) -> list[CommandAck | StatusText]:
+    def update(self, msg: mavlink.MAVLink_message, now_s: float) -> list[CommandAck | StatusText]:
         """Take one message; return the ACKs and complete STATUSTEXTs it produced. Never raises on bad input."""
         try:
             return self._update(msg, now_s)
@@ -185,7 +185,7 @@ class VehicleStateTracker:
             self.ignored += 1
             return []
 
-    def _update(self, msg: Any, now_s: float) -> list[CommandAck | StatusText]:
+    def _update(self, msg: mavlink.MAVLink_message, now_s: float) -> list[CommandAck | StatusText]:
         kind = msg.get_type()
         sysid, compid = msg.get_srcSystem(), msg.get_srcComponent()
         if kind == "BAD_DATA" or sysid == self.gcs_system_id:
@@ -208,12 +208,12 @@ class VehicleStateTracker:
         return handler(msg, now_s) or []
 
     @staticmethod
-    def _is_flight_controller(msg: Any) -> bool:
+    def _is_flight_controller(msg: mavlink.MAVLink_message) -> bool:
         return msg.autopilot != mavlink.MAV_AUTOPILOT_INVALID and msg.type not in (
             mavlink.MAV_TYPE_GCS, mavlink.MAV_TYPE_ONBOARD_CONTROLLER, mavlink.MAV_TYPE_GIMBAL,
             mavlink.MAV_TYPE_CAMERA, mavlink.MAV_TYPE_ADSB)
 
-    def _heartbeat(self, msg: Any, now_s: float) -> None:
+    def _heartbeat(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         if not self._is_flight_controller(msg):
             return
         profile = profile_for(msg.autopilot)
@@ -229,31 +229,31 @@ class VehicleStateTracker:
                                           and msg.system_status != mavlink.MAV_STATE_BOOT) else self.state.prearm_text,
         )
 
-    def _sys_status(self, msg: Any, now_s: float) -> None:
+    def _sys_status(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, sensors_present=int(msg.onboard_control_sensors_present),
                              sensors_enabled=int(msg.onboard_control_sensors_enabled),
                              sensors_health=int(msg.onboard_control_sensors_health))
 
-    def _ekf_status_report(self, msg: Any, now_s: float) -> None:
+    def _ekf_status_report(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, ekf_flags=int(msg.flags))
 
-    def _extended_sys_state(self, msg: Any, now_s: float) -> None:
+    def _extended_sys_state(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, landed_state=landed_state_name(int(msg.landed_state)))
 
-    def _local_position_ned(self, msg: Any, now_s: float) -> None:
+    def _local_position_ned(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         if _finite(msg.x, msg.y, msg.z):
             self.state = replace(self.state, north_m=float(msg.x), east_m=float(msg.y), down_m=float(msg.z))
         if _finite(msg.vx, msg.vy, msg.vz):
             self.state = replace(self.state, north_m_s=float(msg.vx), east_m_s=float(msg.vy), down_m_s=float(msg.vz))
 
-    def _attitude(self, msg: Any, now_s: float) -> None:
+    def _attitude(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         if _finite(msg.yaw):
             self.state = replace(self.state, heading_deg=wrap_deg(math.degrees(float(msg.yaw))))
 
-    def _global_position_int(self, msg: Any, now_s: float) -> None:
+    def _global_position_int(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, alt_amsl_m=msg.alt / 1000.0, relative_alt_m=msg.relative_alt / 1000.0)
 
-    def _distance_sensor(self, msg: Any, now_s: float) -> None:
+    def _distance_sensor(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         if msg.orientation != mavlink.MAV_SENSOR_ROTATION_PITCH_270:
             return
         distance_cm = int(msg.current_distance)
@@ -261,13 +261,13 @@ class VehicleStateTracker:
             self._clearance = (distance_cm / 100.0, now_s)
             self.state = replace(self.state, ground_clearance_m=distance_cm / 100.0)
 
-    def _home_position(self, msg: Any, now_s: float) -> None:
+    def _home_position(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         if _finite(msg.x, msg.y, msg.z):
             self.state = replace(self.state, home_north_m=float(msg.x), home_east_m=float(msg.y),
                                  home_down_m=float(msg.z))
         self.state = replace(self.state, home_alt_amsl_m=msg.altitude / 1000.0)
 
-    def _command_ack(self, msg: Any, now_s: float) -> list[CommandAck]:
+    def _command_ack(self, msg: mavlink.MAVLink_message, now_s: float) -> list[CommandAck]:
         target = getattr(msg, "target_system", 0)
         if target not in (0, self.gcs_system_id):
             return []
@@ -275,7 +275,7 @@ class VehicleStateTracker:
         self.acks.append(ack)
         return [ack]
 
-    def _statustext(self, msg: Any, now_s: float) -> list[StatusText]:
+    def _statustext(self, msg: mavlink.MAVLink_message, now_s: float) -> list[StatusText]:
         text = msg.text if isinstance(msg.text, str) else bytes(msg.text).decode("utf-8", "replace")
         text = text.split("\0", 1)[0]
         text_id, chunk_seq = int(getattr(msg, "id", 0) or 0), int(getattr(msg, "chunk_seq", 0) or 0)

@@ -1,131 +1,45 @@
-"""The ground-station side of MAVLink: a threaded client for one vehicle.
+"""The ground-station side of MAVLink for one vehicle: the channel, and the flight operations on it.
 
-One reader/timer thread receives and tracks state, sends our GCS HEARTBEAT at 1 Hz, re-sends the
-current setpoint at 10 Hz while a stream is active, and notices a silent vehicle (link lost after
-``link_lost_s``: nothing more is commanded; the first setpoint after it returns is a stop). High-level
-operations (mode, arm, take-off, land, disarm) run in the caller's thread, wait on what the reader
-saw, and return an :class:`OperationResult`; they never raise for a refusal.
+A :class:`VehicleLink` is the one owner of the connection (it is the :class:`LinkChannel`: reader/timer
+thread, state, setpoint stream) and carries one :class:`FlightOperations` (mode, arm, take-off, land,
+disarm, telemetry), which runs in the caller's thread, waits on what the reader saw, and returns an
+:class:`OperationResult`; it never raises for a refusal. The operations reach the channel only through
+its public methods.
 """
 
 from __future__ import annotations
 
-import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
-from typing import Any
 
-from pymavlink.dialects.v20 import common as mavlink
-
-from gcs_voice.errors import LinkError
-from gcs_voice.link.acks import AckCollector
-from gcs_voice.link.connection import open_connection, parse_connection
-from gcs_voice.link.setpoints import Setpoint, setpoint_fields
+from gcs_voice.link.acks import OperationResult
+from gcs_voice.link.channel import LinkChannel, SetpointSource
 from gcs_voice.link.operations import FlightOperations
-from gcs_voice.link.readiness import load_rules
-from gcs_voice.link.security import LinkSecurity, SecurityHooks
-from gcs_voice.link.state import StatusText, VehicleState, VehicleStateTracker
-from gcs_voice.link.tlog import TlogWriter
-from gcs_voice.settings import Settings, load_settings
+from gcs_voice.link.readiness import Readiness, ReadinessRules
+from gcs_voice.link.security import LinkSecurity
+from gcs_voice.link.state import VehicleState
+from gcs_voice.settings import Settings
 
 __all__ = ["VehicleLink", "SetpointSource"]
 
-#: called at the stream rate with the latest state; returns the setpoint to send
-SetpointSource = Callable[[VehicleState], Setpoint]
 
-
-class VehicleLink(FlightOperations):
+class VehicleLink(LinkChannel):
     """``with VehicleLink("udpin:0.0.0.0:14550") as link: link.wait_vehicle(); link.takeoff(1.5)``."""
 
     def __init__(self, connection: str, settings: Settings | None = None, tlog_path: str | Path | None = None,
                  on_event: Callable[[str], None] | None = None, security: LinkSecurity | None = None) -> None:
-        self.spec = parse_connection(connection)
-        self.security = security or LinkSecurity()
-        self._guard: SecurityHooks | None = None
-        self.settings = settings or load_settings()
-        try:
-            self.tlog = TlogWriter(tlog_path) if tlog_path else None
-        except OSError as exc:
-            raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
-        self.on_event = on_event or (lambda _line: None)
-        self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
-        self.readiness_rules = load_rules()
-        self._conn: Any = None
-        self._lock = threading.RLock()
-        self._changed = threading.Condition(self._lock)
-        self._send_lock = threading.Lock()
-        self._collectors: list[AckCollector] = []
-        self._source: SetpointSource | None = None
-        self._stop_first = False
-        self._link_was_ok = False
-        self._link_was_lost = False
-        self._thread: threading.Thread | None = None
-        self._running = False
-        self._boot_s = time.monotonic()
-        self.last_setpoint: Setpoint | None = None
-        self.setpoints_sent = 0
-        self.read_errors = 0
-        self._telemetry_requested = False
+        super().__init__(connection, settings, tlog_path, on_event, security)
+        self.operations = FlightOperations(self)
+        self.on_link_back = self._ask_telemetry_again
 
-    # ---- lifetime -------------------------------------------------------------------------------
-    def open(self) -> "VehicleLink":
-        self._conn = open_connection(self.spec, self.settings.gcs_system_id, self.settings.gcs_component_id)
-        self._guard = self.security.attach(self._conn, self.on_event)   # signing, --lock-vehicle
-        self._running = True
-        self._thread = threading.Thread(target=self._loop, name="vehicle-link", daemon=True)
-        self._thread.start()
-        return self
-
-    def close(self) -> None:
-        self._running = False
-        if self._thread is not None:
-            self._thread.join(timeout=2.0)
-        if self._conn is not None:
-            try:
-                self._conn.close()
-            except OSError:
-                pass
-        if self._guard is not None:
-            self._guard.close()
-        if self.tlog is not None:
-            self.tlog.close()
-
-    def __enter__(self) -> "VehicleLink":
-        return self.open()
-
-    def __exit__(self, *_exc: Any) -> None:
-        self.close()
-
-    # ---- state ----------------------------------------------------------------------------------
-    @property
-    def state(self) -> VehicleState:
-        with self._lock:
-            return self.tracker.snapshot(time.monotonic())
-
-    def wait_for(self, predicate: Callable[[VehicleState], bool], timeout_s: float) -> VehicleState | None:
-        """Block until ``predicate(state)`` holds (that state) or ``timeout_s`` passes (None)."""
-        deadline = time.monotonic() + timeout_s
-        with self._changed:
-            while True:
-                state = self.tracker.snapshot(time.monotonic())
-                if predicate(state):
-                    return state
-                left = deadline - time.monotonic()
-                if left <= 0:
-                    return None
-                self._changed.wait(min(left, 0.1))
-
-    def wait_vehicle(self, timeout_s: float = 30.0) -> VehicleState:
-        """Wait for a flight controller's HEARTBEAT; LinkError if none comes."""
-        state = self.wait_for(lambda s: s.heartbeats > 0 and s.link_ok, timeout_s)
-        if state is None:
-            why = self._guard.diagnosis() if self._guard is not None else ""
-            raise LinkError(f"no vehicle heard on {self.spec} within {timeout_s:g} s{why}")
-        return state
+    def _ask_telemetry_again(self) -> None:
+        """A vehicle heard again after a loss may have rebooted and forgotten our message intervals."""
+        if self.operations.telemetry_requested:
+            self.operations.request_telemetry()
 
     def connect(self, timeout_s: float = 30.0) -> VehicleState:
         """Open, wait for the vehicle and ask for the telemetry the bridge reads (one call for a CLI)."""
-        if self._conn is None:
+        if not self.running:
             self.open()
         self.wait_vehicle(timeout_s)
         result = self.request_telemetry()
@@ -133,152 +47,49 @@ class VehicleLink(FlightOperations):
             self.on_event(str(result))
         return self.state
 
-    # ---- the reader / timer thread --------------------------------------------------------------
-    def _loop(self) -> None:
-        period_hb, period_sp = 1.0 / self.settings.heartbeat_hz, 1.0 / self.settings.setpoint_hz
-        next_hb = next_sp = time.monotonic()
-        while self._running:
-            try:
-                self._receive(timeout_s=min(0.02, max(0.0, min(next_hb, next_sp) - time.monotonic())))
-                now = time.monotonic()
-                if now >= next_hb:
-                    next_hb = max(next_hb + period_hb, now)
-                    self._send(self._conn.mav.heartbeat_encode(
-                        mavlink.MAV_TYPE_GCS, mavlink.MAV_AUTOPILOT_INVALID, 0, 0, mavlink.MAV_STATE_ACTIVE))
-                self._check_link(now)
-                if now >= next_sp:
-                    next_sp = max(next_sp + period_sp, now)
-                    self._stream_tick()
-            except Exception as exc:  # this thread is the link: report a bug, never die of it
-                self.read_errors += 1
-                self.on_event(f"link thread error (ignored): {exc!r}")
-                time.sleep(0.05)
+    # ---- the operations (gcs_voice.link.operations says how each one works) -------------------------
+    @property
+    def readiness_rules(self) -> ReadinessRules:
+        """When the vehicle counts as ready to arm, and how long a landing may take (``readiness.toml``)."""
+        return self.operations.readiness_rules
 
-    def _receive(self, timeout_s: float) -> None:
-        try:
-            msg = self._conn.recv_match(blocking=True, timeout=timeout_s)
-            while msg is not None and self._running:
-                self._take(msg)
-                msg = self._conn.recv_match(blocking=False)
-        except Exception:  # a socket error or a parser surprise must not end the link
-            self.read_errors += 1
-            time.sleep(0.01)
-
-    def _take(self, msg: Any) -> None:
-        if msg.get_type() == "BAD_DATA":
-            return
-        if self.tlog is not None:
-            self.tlog.write(msg.get_msgbuf())
-        with self._changed:
-            mode_before, armed_before = self.tracker.state.mode, self.tracker.state.armed
-            events = self.tracker.update(msg, time.monotonic())
-            mode_after, armed_after = self.tracker.state.mode, self.tracker.state.armed
-            for event in events:
-                for collector in self._collectors:
-                    collector.take(event)
-            self._changed.notify_all()
-        if self._guard is not None:
-            self._guard.observe(msg, self.tracker.state.system_id)
-        if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
-            self.on_event(f"vehicle now {mode_after}, {'armed' if armed_after else 'disarmed'}")
-        for event in events:
-            if isinstance(event, StatusText):
-                self.on_event(f"vehicle: {event.text}")
-
-    def _check_link(self, now: float) -> None:
-        with self._lock:
-            state = self.tracker.snapshot(now)
-        if state.last_heard_s is None or state.link_ok == self._link_was_ok:
-            return
-        self._link_was_ok = state.link_ok
-        if not state.link_ok:
-            self._stop_first = self._link_was_lost = True
-            self.on_event(f"link lost: vehicle silent for {self.settings.link_lost_s:g} s")
-        elif not self._link_was_lost:
-            self.on_event(f"link up: {state.autopilot or 'unknown autopilot'} system {state.system_id}")
-        else:
-            self.on_event("link back")
-            if self._telemetry_requested:  # a rebooted autopilot forgot our message intervals
-                threading.Thread(target=self.request_telemetry, name="re-request-telemetry", daemon=True).start()
-        with self._changed:
-            self._changed.notify_all()
-
-    def _send(self, msg: Any, time_s: float | None = None) -> None:
-        with self._send_lock:
-            try:
-                self._conn.mav.send(msg)
-            except OSError:
-                return
-            if self.tlog is not None:
-                self.tlog.write(msg.get_msgbuf(), time_s)
-
-    # ---- setpoint stream ------------------------------------------------------------------------
-    def start_stream(self, source: SetpointSource | None = None) -> None:
-        """Re-send ``source(state)`` at ``setpoint_hz`` from now on (default: hold at the current heading)."""
-        with self._lock:
-            self._source = source or self._hold_source()
-
-    def stop_stream(self) -> None:
-        with self._lock:
-            self._source = None
+    @readiness_rules.setter
+    def readiness_rules(self, rules: ReadinessRules) -> None:
+        self.operations.readiness_rules = rules
 
     @property
-    def streaming(self) -> bool:
-        return self._source is not None
+    def ready_timeout_s(self) -> float:
+        """How long ``arm`` waits, by default, for the vehicle to become ready and armed."""
+        return self.operations.ready_timeout_s
 
-    def hold(self) -> None:
-        """Zero velocity at the current heading target, streamed."""
-        self.start_stream(self._hold_source())
+    def readiness(self) -> Readiness:
+        """What the vehicle still lacks before it can be armed."""
+        return self.operations.readiness()
 
-    def _hold_source(self) -> SetpointSource:
-        """Stop at the heading target being streamed, or at the current heading when nothing streams."""
-        state = self.state
-        if self._source is not None and self.last_setpoint is not None:
-            yaw = self.last_setpoint.yaw_deg
-        else:
-            yaw = state.heading_deg if state.heading_deg is not None else 0.0
-        hold = Setpoint.stop(yaw)
-        if state.north_m is not None and state.east_m is not None and state.down_m is not None:
-            hold = Setpoint(0.0, 0.0, 0.0, yaw, state.north_m, state.east_m, state.down_m)  # here, position held
-        return lambda _state: hold
+    def set_mode(self, mode: str) -> OperationResult:
+        """DO_SET_MODE, accepted once the HEARTBEAT shows ``mode``."""
+        return self.operations.set_mode(mode)
 
-    def _stream_tick(self) -> None:
-        with self._lock:
-            source, state = self._source, self.tracker.snapshot(time.monotonic())
-        if source is None or state.system_id is None:
-            return
-        decided_s = time.time()  # before the source decides: see send_setpoint
-        if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
-            try:
-                source(state)
-            except Exception:
-                pass
-            return
-        try:
-            setpoint = source(state)
-        except Exception as exc:  # a broken source must not leave the last velocity running
-            self.on_event(f"setpoint source failed ({exc}); holding")
-            setpoint = Setpoint.stop(self.last_setpoint.yaw_deg if self.last_setpoint else 0.0)
-        self.send_setpoint(setpoint, decided_s)
+    def set_velocity_mode(self, source: SetpointSource | None = None) -> OperationResult:
+        """GUIDED (ArduPilot) or OFFBOARD (PX4, after streaming setpoints first)."""
+        return self.operations.set_velocity_mode(source)
 
-    def send_setpoint(self, setpoint: Setpoint, decided_s: float | None = None) -> bool:
-        """Send one SET_POSITION_TARGET_LOCAL_NED now (the stream calls this; so may a caller that wants no
-        10 Hz delay). Nothing is sent while no vehicle is heard or the link is lost: returns False then.
+    def arm(self, timeout_s: float | None = None) -> OperationResult:
+        """Arm in the arming mode once the vehicle is ready, within ``timeout_s``."""
+        return self.operations.arm(timeout_s)
 
-        ``decided_s`` (UNIX time read *before* the setpoint was computed) stamps the .tlog record, so the
-        log orders a setpoint by when it was decided: one stamped after a source switched to stop was
-        computed after the switch (Ctrl-C: every setpoint after the halt time is a stop)."""
-        state = self.state
-        if state.system_id is None or not state.link_ok:
-            return False
-        if self._stop_first:
-            if not setpoint.is_stop:
-                setpoint = Setpoint.stop(setpoint.yaw_deg)
-            self._stop_first = False
-        boot_ms = int((time.monotonic() - self._boot_s) * 1000)
-        separately = state.profile.position_axes_separately if state.profile else False
-        fields = setpoint_fields(setpoint, state.system_id, state.component_id or 0, boot_ms, separately)
-        self._send(self._conn.mav.set_position_target_local_ned_encode(*fields), decided_s)
-        self.last_setpoint = setpoint
-        self.setpoints_sent += 1
-        return True
+    def disarm(self) -> OperationResult:
+        """Disarm (refused by the vehicle in flight: the stream then keeps going)."""
+        return self.operations.disarm()
+
+    def takeoff(self, altitude_m: float, source: SetpointSource | None = None) -> OperationResult:
+        """Arm, climb to ``altitude_m`` above home, then stream ``source`` in the velocity mode."""
+        return self.operations.takeoff(altitude_m, source)
+
+    def land(self) -> OperationResult:
+        """NAV_LAND where the vehicle is; the stream stops once it is accepted."""
+        return self.operations.land()
+
+    def request_telemetry(self) -> OperationResult:
+        """Ask for the messages the bridge reads, at the rates in the settings."""
+        return self.operations.request_telemetry()

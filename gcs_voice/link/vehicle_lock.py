@@ -17,7 +17,11 @@ from __future__ import annotations
 
 import time
 from collections import deque
-from typing import Any
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # annotations only: mavutil is imported by link.connection, after MAVLINK20 is set
+    from pymavlink import mavutil
+    from pymavlink.dialects.v20 import common as mavlink
 
 __all__ = ["VehicleLock"]
 
@@ -27,7 +31,7 @@ UDP_MAX_PACKET_LEN = 65535
 class VehicleLock:
     """Installed on an open pymavlink connection; ``observe`` each message taken, it locks once."""
 
-    def __init__(self, conn: Any) -> None:
+    def __init__(self, conn: mavutil.mavfile) -> None:
         from pymavlink import mavutil
 
         self.conn = conn
@@ -42,7 +46,7 @@ class VehicleLock:
     def locked(self) -> bool:
         return self.system_id is not None
 
-    def _recv_msg(self) -> Any:
+    def _recv_msg(self) -> mavlink.MAVLink_message | None:
         """``mavudp.recv`` + ``mavfile.recv_msg`` for one datagram, remembering who sent each message."""
         conn = self.conn
         if self._queue:
@@ -68,7 +72,7 @@ class VehicleLock:
         self._queue.extend(msgs[1:])
         return msgs[0] if msgs else None
 
-    def observe(self, msg: Any, vehicle_system_id: int | None) -> str | None:
+    def observe(self, msg: mavlink.MAVLink_message, vehicle_system_id: int | None) -> str | None:
         """Lock on the message that made the tracker pick its vehicle; returns the line to tell the user."""
         if self.locked or vehicle_system_id is None or msg.get_type() != "HEARTBEAT" \
                 or msg.get_srcSystem() != vehicle_system_id:

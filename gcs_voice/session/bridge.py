@@ -2,7 +2,9 @@
 
 Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) and the keyboard call
 ``Bridge.submit``; the link's own thread streams ``ActionMapper.setpoint`` at 10 Hz; this loop
-(``Bridge.run``) takes one submitted action at a time and watches the link. Rules, in order:
+(``Bridge.run``) takes one submitted action at a time and watches the link. A setpoint has one route:
+the mapper decides it and the link sends it (``stream_now`` sends a new command's first one at once,
+the stream the rest); the bridge never sends one itself. Rules, in order:
 
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
@@ -29,10 +31,14 @@ import time
 from dataclasses import dataclass, field
 from typing import Any
 
+from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.link.acks import OperationResult
 from gcs_voice.link.readiness import assess
+from gcs_voice.link.state import VehicleState
+from gcs_voice.link.vehicle_link import VehicleLink
 from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
@@ -63,7 +69,7 @@ class Request:
     accepted: bool = False
 
 
-def status_of(state: Any, action: str | None) -> dict[str, Any]:
+def status_of(state: VehicleState | None, action: str | None) -> dict[str, Any]:
     """The view's vehicle panel from a link VehicleState (None-safe)."""
     if state is None:
         return {"link": "waiting"}
@@ -80,7 +86,7 @@ def status_of(state: Any, action: str | None) -> dict[str, Any]:
             "ready": ready}
 
 
-def _on_ground(state: Any) -> bool:
+def _on_ground(state: VehicleState) -> bool:
     """Landed by the autopilot's own word (EXTENDED_SYS_STATE), else by height above home."""
     if state.landed_state is not None:
         return state.landed_state == "ON_GROUND"
@@ -91,7 +97,7 @@ def _on_ground(state: Any) -> bool:
 class Bridge:
     """Owns the mapper's current action and the vehicle operations; ``run()`` until ``finish()``."""
 
-    def __init__(self, link: Any, mapper: Any, bus: EventBus, takeoff_m: float) -> None:
+    def __init__(self, link: VehicleLink, mapper: ActionMapper, bus: EventBus, takeoff_m: float) -> None:
         self.link = link
         self.mapper = mapper
         self.bus = bus
@@ -241,12 +247,10 @@ class Bridge:
             # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
             return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
                                          "say 'take off' to fly by voice again")
-        decided_s = time.time()  # before the mapper decides (see VehicleLink.send_setpoint)
+        decided_s = time.time()  # before the mapper decides (see LinkChannel.send_setpoint)
         mapped = self.mapper.apply(action, state)
-        if not self.link.streaming:
-            self.link.start_stream(self.mapper.setpoint)
-        setpoint = self.mapper.setpoint(state)
-        self.link.send_setpoint(setpoint, decided_s)  # at once, not at the next 10 Hz tick
+        # the link streams the mapper's setpoint; this one goes at once, not at the next 10 Hz tick
+        setpoint = self.link.stream_now(self.mapper.setpoint, decided_s)
         sent_t = time.time()
         request.accepted = True
         d = request.decision
@@ -255,8 +259,9 @@ class Bridge:
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
             origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
-            setpoint={"forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
-                      "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
+            setpoint=None if setpoint is None else {
+                "forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
+                "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
             utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
         )
         return None
@@ -296,7 +301,7 @@ class Bridge:
         finally:
             self._busy = None
 
-    def _operation(self, action: str) -> Any:
+    def _operation(self, action: str) -> OperationResult:
         """Run one flight operation on the link (blocking); returns its OperationResult."""
         link = self.link
         if action == "take_off":
@@ -326,9 +331,7 @@ class Bridge:
             if state.armed and state.link_ok and in_velocity_mode and self._busy != "land":
                 if self.mapper.action != "stop":
                     self.mapper.apply("stop", state)
-                if not self.link.streaming:
-                    self.link.start_stream(self.mapper.setpoint)
-                self.link.send_setpoint(self.mapper.setpoint(state))
+                self.link.stream_now(self.mapper.setpoint)
                 self.bus.emit("command", "stop (end of session)", action="stop", origin="shutdown",
                               sent_t=time.time())
                 time.sleep(FINAL_STOP_S)

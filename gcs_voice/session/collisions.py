@@ -13,9 +13,7 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any
-
-from gcs_voice.session.events import EventBus
+from gcs_voice.session.events import Event, EventBus
 
 __all__ = ["Hit", "parse_hit", "CollisionWatch", "collisions_in"]
 
@@ -54,7 +52,7 @@ class CollisionWatch:
         self.landing = False  # a land was commanded since the last take-off
         self.count = 0
 
-    def __call__(self, event: Any) -> None:
+    def __call__(self, event: Event) -> None:
         if event.kind == "command" and event.data.get("action") in ("land", "take_off"):
             self.landing = event.data["action"] == "land"
             return

@@ -12,10 +12,13 @@ import time
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.listen import ScriptStep
+
+if TYPE_CHECKING:
+    from gcs_voice.session.run import Voice
 
 __all__ = ["DemoStep", "load_sequence", "run_demo", "whisper_model_candidates", "choose_voice", "step_summary",
            "collision_lines"]
@@ -65,7 +68,7 @@ _WHY = {
 }
 
 
-def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Any, list[str], str]:
+def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Voice | None, list[str], str]:
     """Load the first engine that works for ``lang``: (voice tuple or None, notes on what was skipped and why,
     one line saying which engine and model fly the language, and why).
 

@@ -23,11 +23,17 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.session.events import EventBus
+
+if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers load when a session picks them
+    from gcs_voice.asr.base import Recognizer
+    from gcs_voice.asr.stop_spotter import SpotStream, StopSpotter
+    from gcs_voice.domain.dictionary import Dictionary
+    from gcs_voice.understanding.matcher import Matcher
 
 __all__ = ["VoicePipeline", "StopPath", "ScriptStep", "read_utterance", "run_script", "run_microphone",
            "start_voice_thread", "LATE_S"]
@@ -47,10 +53,10 @@ class StopPath:
     chunks) and ``None`` at its end. One utterance at a time, from one thread.
     """
 
-    def __init__(self, spotter: Any, bus: EventBus) -> None:
+    def __init__(self, spotter: StopSpotter, bus: EventBus) -> None:
         self.spotter = spotter
         self.bus = bus
-        self._stream: Any = None
+        self._stream: SpotStream | None = None
         self._fired = False
 
     def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None) -> None:
@@ -106,8 +112,9 @@ def read_utterance(path: str | Path) -> bytes:
 class VoicePipeline:
     """One recogniser, one matcher, the dictionaries; ``hear(pcm)`` -> Decision, with events."""
 
-    def __init__(self, recognizer: Any, matcher: Any, dictionaries: Sequence[Any], lang: str | None,
-                 bus: EventBus, realtime: bool = True, stop_spotter: Any = None) -> None:
+    def __init__(self, recognizer: Recognizer, matcher: Matcher, dictionaries: Sequence[Dictionary],
+                 lang: str | None, bus: EventBus, realtime: bool = True,
+                 stop_spotter: StopSpotter | None = None) -> None:
         self.recognizer = recognizer
         #: heard before the recogniser (None: no spotter, stops wait for the main decision like any word)
         self.stop_path = StopPath(stop_spotter, bus) if stop_spotter is not None else None

@@ -12,16 +12,26 @@ import threading
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, TypeAlias
 
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.bridge import STOP_SIGNALS, Bridge, Request
 from gcs_voice.session.collisions import CollisionWatch
-from gcs_voice.session.events import EventBus
+from gcs_voice.session.events import Event, EventBus
 from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
 from gcs_voice.session.session_log import SessionLog, session_paths
 
-__all__ = ["SessionConfig", "SessionResult", "run_session", "load_voice", "USER_ERROR_EXIT"]
+if TYPE_CHECKING:  # annotations only: the engines and matchers load when a session picks them
+    from gcs_voice.asr.base import Recognizer
+    from gcs_voice.asr.stop_spotter import StopSpotter
+    from gcs_voice.domain.dictionary import Dictionary
+    from gcs_voice.link.security import LinkSecurity
+    from gcs_voice.understanding.matcher import Matcher
+
+__all__ = ["SessionConfig", "SessionResult", "Voice", "run_session", "load_voice", "USER_ERROR_EXIT"]
+
+#: what hears a session: (recogniser, matcher, dictionaries, stream language; None = let the engine choose)
+Voice: TypeAlias = tuple["Recognizer", "Matcher", "list[Dictionary]", "str | None"]
 
 #: exit status of a session ended by a user mistake or a missing vehicle (GcsVoiceError), as the CLI exits
 USER_ERROR_EXIT = 2
@@ -53,11 +63,11 @@ class SessionConfig:
     #: explicit script (demo: per-step holds); overrides say/gap/hold when given
     script: Sequence[ScriptStep] | None = None
     #: extra bus subscribers (the demo's summary)
-    subscribers: Sequence[Callable[[Any], None]] = ()
+    subscribers: Sequence[Callable[[Event], None]] = ()
     #: single settings given as flags (``--speed``...), over ``settings_path``; None = not given
     setting_overrides: dict[str, float | None] = field(default_factory=dict)
     #: --signing-key, --require-signed, --lock-vehicle (a gcs_voice.link.security.LinkSecurity; None = none)
-    link_security: Any = None
+    link_security: LinkSecurity | None = None
     #: how the user wrote each override (its flag), for error messages
     setting_names: dict[str, str] = field(default_factory=dict)
     #: run the stop spotter before the main recogniser (a stop word stops at once)
@@ -73,7 +83,7 @@ class SessionResult:
 
 
 def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: str | None,
-               dictionary_files: Sequence[str | Path] = ()) -> tuple[Any, Any, list, str | None]:
+               dictionary_files: Sequence[str | Path] = ()) -> Voice:
     """(recognizer, matcher, dictionaries, stream language) for a language choice; errors are one line."""
     from gcs_voice.asr.registry import default_engine, load_recognizer
     from gcs_voice.domain.dictionary import AUTO_LANGUAGES, load_dictionary, load_language
@@ -90,7 +100,7 @@ def load_voice(lang: str, engine: str | None, model: str | None, matcher_name: s
     return recognizer, matcher, dictionaries, stream_lang
 
 
-def _stop_spotter(config: SessionConfig, dictionaries: Sequence[Any], bus: Any) -> Any:
+def _stop_spotter(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: EventBus) -> StopSpotter | None:
     """The stop spotter for the session's languages, or None (said once) when off or unavailable."""
     if not config.stop_spotter:
         return None
@@ -123,7 +133,7 @@ def _raise_terminated(signum: int, _frame: Any) -> None:
     raise _Terminated(signum)
 
 
-def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None = None) -> SessionResult:
+def run_session(config: SessionConfig, voice: Voice | None = None) -> SessionResult:
     """Fly one session to its end; the vehicle is stopped before this returns, whatever happened."""
     import signal
 
@@ -140,7 +150,7 @@ def run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] 
             signal.signal(signum, handler)
 
 
-def _run_session(config: SessionConfig, voice: tuple[Any, Any, list, str | None] | None) -> SessionResult:
+def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
     from gcs_voice.actions.mapper import ActionMapper
     from gcs_voice.link import VehicleLink
     from gcs_voice.settings import load_settings

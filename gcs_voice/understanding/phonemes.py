@@ -16,7 +16,7 @@ from functools import lru_cache
 
 from gcs_voice.errors import GcsVoiceError
 
-__all__ = ["PhonemeError", "ipa", "phoneme_tokens", "ESPEAK_VOICE"]
+__all__ = ["PhonemeError", "ipa", "phoneme_tokens", "library_name", "ESPEAK_VOICE"]
 
 #: dictionary language -> espeak-ng voice used to pronounce it.
 ESPEAK_VOICE = {"en": "en-us", "es": "es"}
@@ -55,6 +55,13 @@ def _library() -> ctypes.CDLL | None:
     except (OSError, AttributeError):
         _lib_failed = True
     return _lib
+
+
+def library_name() -> str | None:
+    """The espeak-ng library ``ipa`` uses (the system's or the pip wheel's); None when only the command is there."""
+    with _lock:
+        lib = _library()
+    return None if lib is None else lib._name
 
 
 def _load_espeak() -> tuple[ctypes.CDLL, bytes | None]:
