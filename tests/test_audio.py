@@ -180,8 +180,9 @@ def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_d
     """
     from conftest import shared_path
     from tools import bench_stream
+    from tools.real_speech import load_recordings
 
-    commands = [c for c in bench_stream.held_out(real_speech_dir, part="test") if c.kind == "command"]
+    commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(5).permutation(len(commands))[:6]]
     noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
     x, placed = bench_stream.build_stream(clips, noise, 12.0, seed=5, pause_s=(1.0, 2.5))
