@@ -175,21 +175,29 @@ def test_silero_segmenter_cuts_overlong_speech(tmp_path):
 def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_dir):
     """A few real commands at pauses over the real kitchen noise at 12 dB: one segment each.
 
-    The energy VAD merged such utterances (29 segments for 60); the streaming Silero VAD must not.
+    The energy VAD merged such utterances (29 segments for 60); the streaming Silero VAD must not: every
+    utterance is overlapped by exactly one segment, and no segment spans two. A segment on noise alone
+    (a clatter between utterances) is allowed here; the dev sweep counts them (docs/bench/vad_sweep.md),
+    and the recogniser decides them like any other (docs/bench/stream.md counts false actions on noise).
     (It does miss some quiet one-word recordings: see docs/bench/stream.md for the counts.)
     """
     from conftest import shared_path
     from tools import bench_stream
+    from tools.real_speech import load_recordings
 
-    commands = [c for c in bench_stream.held_out(real_speech_dir, part="test") if c.kind == "command"]
+    commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(5).permutation(len(commands))[:6]]
     noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
     x, placed = bench_stream.build_stream(clips, noise, 12.0, seed=5, pause_s=(1.0, 2.5))
     pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     utterances = list(segment_utterances(pcm_to_chunks(pcm), load_vad_settings(method="silero")))
-    assert len(utterances) == len(placed), [(u.start_s, u.end_s) for u in utterances]
-    for utt, p in zip(utterances, placed):
-        assert utt.start_s < p.voiced_end_s and utt.end_s > p.voiced_start_s, (utt, p)
+    spans = [(u.start_s, u.end_s) for u in utterances]
+
+    def covers(span: tuple[float, float], p) -> bool:
+        return span[0] < p.voiced_end_s and span[1] > p.voiced_start_s
+
+    assert [sum(covers(s, p) for s in spans) for p in placed] == [1] * len(placed), spans
+    assert all(sum(covers(s, p) for p in placed) <= 1 for s in spans), spans
     # and the same stream gives the same segments (the network's state starts fresh per stream)
     again = list(segment_utterances(pcm_to_chunks(pcm), load_vad_settings(method="silero")))
     assert [(u.start_s, u.end_s) for u in again] == [(u.start_s, u.end_s) for u in utterances]

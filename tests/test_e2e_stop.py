@@ -22,11 +22,11 @@ def test_the_spotted_stop_is_on_the_wire_before_the_main_decision(tmp_path: Path
     require_parts("sim_bridge.cli", "faster_whisper")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.sources import read_wav
-    from tools.bench_stream import held_out
+    from tools.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
-    stop = next(c.path for c in held_out(real_speech_dir, part="test")
-                if c.truth == "stop" and spotter.spot(read_wav(c.path)).fired)
+    stop = next(r.path for r in load_recordings(real_speech_dir, split="test")
+                if r.action == "stop" and spotter.spot(read_wav(r.path)).fired)
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         result = run_fly(sim.connection, [demo_wav("go_forward"), stop], tmp_path, gap_s=3.0, hold_s=3.0,
                          extra=["--engine", "whisper", "--model", str(whisper_model_dir)], timeout_s=600.0)

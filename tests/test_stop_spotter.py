@@ -13,11 +13,11 @@ pytest.importorskip("pocketsphinx")
 
 
 def _held_out(real_speech_dir: Path, truth_or_word: str) -> list[Path]:
-    """Test-split recordings (tools/bench_stream speaker hash) of one class, or of one non-command word."""
-    from tools.bench_stream import held_out
+    """Test-split recordings (tools.real_speech's speaker split) of one class, or of one non-command word."""
+    from tools.real_speech import load_recordings
 
-    return [c.path for c in held_out(real_speech_dir, part="test")
-            if c.truth == truth_or_word or (c.truth == "none" and c.path.name.startswith(truth_or_word + "_"))]
+    return [r.path for r in load_recordings(real_speech_dir, split="test")
+            if r.action == truth_or_word or (r.action is None and r.path.name.startswith(truth_or_word + "_"))]
 
 
 @pytest.fixture(scope="module")

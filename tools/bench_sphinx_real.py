@@ -5,13 +5,13 @@ weight: ``[sphinx]`` in gcs_voice/asr/engines.toml), caches the recognitions, th
 every matcher at several ``min_confidence`` floors. Counts commands right / wrong / rejected and
 non-commands acted on (single words and sentences apart).
 
-Split by speaker (a wrong action on a voice tuning never heard is what matters): a recording is
-``dev`` when a stable hash (SHA-1) of its speaker id falls in the first 60 %, else ``test``. The
-sentences have no published speaker id, so their file name is hashed instead. The setting is chosen
-on dev only: the most right commands minus 3 per wrong action, subject to non-commands acted on
-<= 2 % on dev (a wrong action is worse than none); when no setting meets that bound, the most right
-commands minus 3 per wrong action and 2 per non-command acted on (the rule of thresholds.toml). Then
-reported on test, which tuning never saw.
+Split by speaker (a wrong action on a voice tuning never heard is what matters): the English
+recordings of ``tools.real_speech.load_recordings``, whose ``dev``/``test`` split is the one of every
+real-speech tool (this file has no split of its own; ``python -m tools.real_speech`` prints it). The
+setting is chosen on dev only: the most right commands minus 3 per wrong action, subject to
+non-commands acted on <= 2 % on dev (a wrong action is worse than none); when no setting meets that
+bound, the most right commands minus 3 per wrong action and 2 per non-command acted on (the rule of
+thresholds.toml). Then reported on test, which tuning never saw.
 
     nice -n 10 python -m tools.bench_sphinx_real            # sweep, choose on dev, report on test
     python -m tools.bench_sphinx_real --write docs/bench/sphinx_real.md
@@ -20,13 +20,11 @@ reported on test, which tuning never saw.
 from __future__ import annotations
 
 import argparse
-import csv
 import hashlib
 import json
 import os
 import sys
 import time
-from dataclasses import dataclass
 from pathlib import Path
 
 REPO = Path(__file__).resolve().parent.parent
@@ -38,11 +36,11 @@ from gcs_voice.audio.sources import read_wav
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import MATCHERS, get_matcher
 from tools.bench_real import Counts
+from tools.real_speech import Recording, load_recordings
 
 CACHE = REPO / "out" / "bench" / "sphinx_real"
 #: Bumped when the engine's front end changes (cached recognitions of an older one are not reused).
 FRONT_END = "dither-silence-v2"
-DEV_SHARE = 0.60
 MAX_NONCOMMAND_ACTED = 0.02
 WRONG_COST = 3
 FALSE_ACCEPT_COST = 2
@@ -61,29 +59,9 @@ WEIGHTS = (0.001, 0.01, 0.1, 1.0)
 FLOORS = (0.0, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9)
 
 
-@dataclass(frozen=True)
-class Row:
-    path: str
-    truth: str  # class id, or "none"
-    kind: str  # "command", "word" (a non-command word) or "sentence"
-    split: str  # dev / test
-
-
-def split_of(key: str) -> str:
-    """dev for 60 % of keys (speaker ids), test for the rest; stable across runs and machines."""
-    return "dev" if int(hashlib.sha1(key.encode()).hexdigest()[:8], 16) % 100 < DEV_SHARE * 100 else "test"
-
-
-def real_rows(speech: Path) -> list[Row]:
-    rows = []
-    for r in csv.DictReader(open(speech / "labels.tsv", encoding="utf-8"), delimiter="\t"):
-        if r["lang"] != "en":
-            continue
-        sentence = r["path"].startswith("en/_sentences/")
-        kind = "command" if r["class"] != "none" else ("sentence" if sentence else "word")
-        key = Path(r["path"]).stem if sentence else r["speaker"]
-        rows.append(Row(r["path"], r["class"], kind, split_of(key)))
-    return rows
+def english(speech: Path) -> list[Recording]:
+    """The English recordings of ``speech``, each with its dev/test split (tools.real_speech's)."""
+    return [r for r in load_recordings(speech) if r.lang == "en"]
 
 
 def _to_json(rec: Recognition) -> dict:
@@ -100,8 +78,8 @@ def setting_label(garbage: str, weight: float) -> str:
     return f"garbage={garbage} weight={weight:g}"
 
 
-def recognise_all(speech: Path, rows: list[Row], garbage: str, weight: float) -> dict[str, Recognition]:
-    """Recognitions of every row under one setting, cached by setting and by the WAV's digest."""
+def recognise_all(speech: Path, rows: list[Recording], garbage: str, weight: float) -> dict[Path, Recognition]:
+    """Recognitions of every recording under one setting, cached by setting (keyed by path under ``speech``)."""
     overrides: dict = {"garbage_weight": weight}
     if GARBAGE_LISTS[garbage] is not None:
         overrides["garbage_words"] = list(GARBAGE_LISTS[garbage])
@@ -109,21 +87,20 @@ def recognise_all(speech: Path, rows: list[Row], garbage: str, weight: float) ->
     digest = hashlib.sha1(json.dumps([FRONT_END, settings], sort_keys=True).encode()).hexdigest()[:12]
     path = CACHE / f"{digest}.json"
     cache = json.loads(path.read_text(encoding="utf-8")) if path.is_file() else {}
-    todo = [r for r in rows if r.path not in cache]
+    todo = [r for r in rows if r.path.relative_to(speech).as_posix() not in cache]
     if todo:
         recognizer = SphinxRecognizer([load_language("en")], settings=overrides)
         start = time.monotonic()
         for i, row in enumerate(todo):
-            wav = speech / row.path
             stream = recognizer.start_stream("en")
-            stream.accept(read_wav(wav))
-            cache[row.path] = _to_json(stream.finish())
+            stream.accept(read_wav(row.path))
+            cache[row.path.relative_to(speech).as_posix()] = _to_json(stream.finish())
             if (i + 1) % 100 == 0:
                 print(f"  {setting_label(garbage, weight)}: {i + 1}/{len(todo)} "
                       f"({time.monotonic() - start:.0f} s)", file=sys.stderr)
         CACHE.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(cache), encoding="utf-8")
-    return {p: _from_json(d) for p, d in cache.items()}
+    return {speech / p: _from_json(d) for p, d in cache.items()}
 
 
 def cells(c: Counts) -> list[str]:
@@ -135,7 +112,8 @@ def cells(c: Counts) -> list[str]:
             pct(c.words_acted, c.words), pct(c.sentences_acted, c.sentences)]
 
 
-def evaluate(rows: list[Row], recs: dict[str, Recognition], matcher: str, floor: float, split: str) -> Counts:
+def evaluate(rows: list[Recording], recs: dict[Path, Recognition], matcher: str, floor: float,
+             split: str) -> Counts:
     m = get_matcher(matcher, min_confidence=floor)
     en = [load_language("en")]
     c = Counts()
@@ -145,8 +123,8 @@ def evaluate(rows: list[Row], recs: dict[str, Recognition], matcher: str, floor:
         action = m.decide(recs[row.path], en).action
         if row.kind == "command":
             c.commands += 1
-            c.right += action == row.truth
-            c.wrong += action is not None and action != row.truth
+            c.right += action == row.action
+            c.wrong += action is not None and action != row.action
         elif row.kind == "word":
             c.words += 1
             c.words_acted += action is not None
@@ -169,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.speech / "labels.tsv").is_file():
         print(f"bench_sphinx_real: error: no {args.speech / 'labels.tsv'}", file=sys.stderr)
         return 2
-    rows = real_rows(args.speech)
+    rows = english(args.speech)
     results = []  # (garbage, weight, matcher, floor, dev counts, recognitions)
     grid = ([(g, float(w)) for g, _, w in (pair.rpartition(":") for pair in args.grid.split(","))] if args.grid
             else [(g, float(w)) for g in args.garbage.split(",") for w in args.weights.split(",")])
@@ -185,7 +163,8 @@ def main(argv: list[str] | None = None) -> int:
              "Generated by `python -m tools.bench_sphinx_real " + " ".join(argv if argv is not None else sys.argv[1:])
              + "`; rerun it to refresh. Recogniser settings: `[sphinx]` in gcs_voice/asr/engines.toml; "
              "min_confidence: `[<matcher>.engine.sphinx]` in gcs_voice/understanding/thresholds.toml.", "",
-             f"Corpus: {args.speech} ({len(rows)} recordings; speaker split dev {n['dev']} / test {n['test']}). "
+             f"Corpus: {args.speech} ({len(rows)} recordings; speaker split of `python -m tools.real_speech`: "
+             f"dev {n['dev']} / test {n['test']}). "
              "Rule: the most right commands minus 3 per wrong action on dev, with dev non-commands acted on "
              f"<= {MAX_NONCOMMAND_ACTED:.0%}.", "",
              "| setting | matcher | min_confidence | dev right | dev wrong | dev non-commands acted on "

@@ -4,7 +4,9 @@ Flies one real session (``gcs_voice.session.run.run_session``, what ``gcs-voice 
 bundled simulator in real time on loopback, while this tool keeps two busy-loop processes running (one
 per core: "another process" loading the machine). The script alternates a motion (the bundled demo
 recording; done by the script anyway if it is not heard, so there is always something to stop) with a
-real recorded "stop" from the held-out test part of ``../shared/speech`` (tools/bench_stream.py split).
+real recorded "stop" from the held-out test part of ``../shared/speech``
+(``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this
+file has none of its own).
 
 For each stop: the end of speech is the end of the recording's voiced frames (25 dB below its peak,
 tools/bench_stream.voiced_level) on the wall clock of the feed (recordings are fed at speaking pace);
@@ -30,7 +32,8 @@ import time
 from pathlib import Path
 
 from tools.bench_latency import percentile
-from tools.bench_stream import SHARED, held_out, read_wav, voiced_level
+from tools.bench_stream import read_wav, voiced_level
+from tools.real_speech import SHARED, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 MOTIONS = ("go_forward", "go_left", "climb", "turn_left")
@@ -62,7 +65,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="analyse the session this tool left in DIR (stop.jsonl, stop.tlog) instead of flying")
     args = p.parse_args(argv)
 
-    stops = [c.path for c in held_out(args.speech, part="test") if c.truth == "stop"]
+    stops = [r.path for r in load_recordings(args.speech, split="test") if r.action == "stop"]
     if args.stops:
         stops = stops[:args.stops]
     demo = ROOT / "gcs_voice" / "session" / "demo_audio" / "en"
@@ -111,7 +114,8 @@ def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path], 
         "",
         f"Command: `{shown}`. {args.hogs} busy-loop processes run beside the session (load average before / after "
         "in the last column, 2 cores). Real time, bundled simulator (ardupilot, open_field) on UDP loopback.",
-        "Stops: the real \"stop\" recordings of the held-out test part of `../shared/speech`, each after a motion "
+        "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
+        "(`python -m tools.real_speech`), each after a motion "
         "(demo recording; done by the script if not heard). Clock origin: the end of speech (the recording's last "
         "voiced frame, fed at speaking pace); end: the first zero-velocity setpoint on the wire (tlog). "
         f"Milliseconds; negative: the stop was on the wire before the recording's last voiced frame (the spotter "

@@ -1,11 +1,13 @@
 """The stop spotter on real speech: hits on real "stop", false alarms on everything else, decoding time.
 
-Sweeps the spotter's ``kws_threshold`` on the dev part of ``../shared/speech`` (the speaker-hash split of
-tools/bench_stream.py), picks the largest threshold (fewest false alarms) whose hit rate on the dev
-"stop" recordings reaches ``--min-hit`` in every swept condition (a stop must not be late; a false stop
-only pauses), and reports that threshold on the test part, which the choice never saw, clean and over
-real kitchen noise at 12 dB (speech level over its voiced frames). A hit is the spotter firing on a "stop" recording; any other firing is a false alarm
-(it costs a pause: the main decision follows and may command the motion again).
+Sweeps the spotter's ``kws_threshold`` on the dev part of ``../shared/speech`` (the speaker split of
+``tools.real_speech.load_recordings``, the one split of every real-speech tool; this file has none of its
+own), picks the largest threshold (fewest false alarms) whose hit rate on the dev "stop" recordings
+reaches ``--min-hit`` in every swept condition (a stop must not be late; a false stop only pauses), and
+reports that threshold on the test part, which the choice never saw, clean and over real kitchen noise
+at 12 dB (speech level over its voiced frames). A hit is the spotter firing on a "stop" recording; any
+other firing is a false alarm (it costs a pause: the main decision follows and may command the motion
+again).
 
     python -m tools.bench_stop_spotter --out docs/bench/stop.md
 """
@@ -20,12 +22,13 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import NOISE_FILES, SHARED, Clip, held_out, read_wav, voiced_level
+from tools.bench_stream import NOISE_FILES, read_wav, voiced_level
+from tools.real_speech import SHARED, Recording, load_recordings
 
 THRESHOLDS = (1e-15, 1e-20, 1e-25, 1e-30)
 
 
-def mixed(clip: Clip, noise: np.ndarray | None, snr_db: float, rng: np.random.Generator) -> bytes:
+def mixed(clip: Recording, noise: np.ndarray | None, snr_db: float, rng: np.random.Generator) -> bytes:
     """The clip's PCM, over a random stretch of ``noise`` at ``snr_db`` (voiced level), or clean."""
     x = read_wav(clip.path)
     if noise is not None:
@@ -38,7 +41,7 @@ def mixed(clip: Clip, noise: np.ndarray | None, snr_db: float, rng: np.random.Ge
     return (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
 
 
-def run(clips: list[Clip], pcms: list[bytes], threshold: float, words: list[str] | None = None) -> dict:
+def run(clips: list[Recording], pcms: list[bytes], threshold: float, words: list[str] | None = None) -> dict:
     from gcs_voice.asr.stop_spotter import load_stop_spotter
 
     spotter = load_stop_spotter(["en"], thresholds={"en": threshold}, words=words)
@@ -46,7 +49,7 @@ def run(clips: list[Clip], pcms: list[bytes], threshold: float, words: list[str]
     ms = []
     for clip, pcm in zip(clips, pcms):
         hit = spotter.spot(pcm)
-        key = "stop" if clip.truth == "stop" else clip.kind
+        key = "stop" if clip.action == "stop" else clip.kind
         hits[key][0] += hit.fired
         hits[key][1] += 1
         if clip.kind != "sentence":
@@ -81,7 +84,7 @@ def main(argv: list[str] | None = None) -> int:
     words = args.words.split(",") if args.words else None
     thresholds = [float(t) for t in args.thresholds.split(",")]
     lines = []
-    dev = held_out(part="dev")
+    dev = load_recordings(split="dev")
     results: dict[float, list[dict]] = {}
     for cond, noise in conds.items():
         pcms = [mixed(c, noise, 12.0, np.random.default_rng(i)) for i, c in enumerate(dev)]
@@ -93,7 +96,7 @@ def main(argv: list[str] | None = None) -> int:
     hit = lambda r: r["hits"]["stop"][0] / max(1, r["hits"]["stop"][1])  # noqa: E731
     ok = [th for th in thresholds if all(hit(r) >= args.min_hit for r in results[th])]
     chosen = max(ok) if ok else min(thresholds)
-    test = held_out(part="test")
+    test = load_recordings(split="test")
     for cond, noise in every.items():
         pcms = [mixed(c, noise, 12.0, np.random.default_rng(10_000 + i)) for i, c in enumerate(test)]
         lines.append(row("**test**", cond, chosen, run(test, pcms, chosen, words)))
@@ -106,7 +109,8 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "Spotter: PocketSphinx keyword spotting, English model of the pocketsphinx wheel, the English stop words "
         f"({', '.join(words) if words else 'gcs_voice/asr/stop_spotter.toml'}), each recording decoded whole. Corpus: `../shared/speech`, split by "
-        "speaker hash (tools/bench_stream.py: 40 % test); dev picks the threshold (largest with a stop hit rate "
+        "speaker (`python -m tools.real_speech`: 60 % dev, 40 % test); dev picks the threshold (largest with "
+        "a stop hit rate "
         f">= {100 * args.min_hit:g} % in the swept conditions: **{chosen:g}**), test reports it. Kitchen = "
         "`../shared/noise/doing_the_dishes.wav` at 12 dB SNR over the voiced frames. Hits: the spotter fires "
         "on a real \"stop\"; the other columns are false alarms (fired / recordings): other commands, "

@@ -1,10 +1,11 @@
 """Live listening in noise: continuous streams of real speech over real noise, fed to ``gcs-voice recognize --segment``.
 
 A microphone in a room hears commands and other talk at random pauses, over noise that never stops.
-This builds such streams from the held-out test part of the real recordings (``../shared/speech``:
-split by speaker, 40 % test by a stable hash of the speaker id; the sentences, which have no speaker
-id, by a hash of the file name), mixes them over the real noises of ``../shared/noise`` at 20/12/6 dB
-SNR (speech level measured over its voiced frames, noise over the whole track), writes the stream WAV
+This builds such streams from the held-out test part of the real recordings: ``../shared/speech`` as
+``tools.real_speech.load_recordings(split="test")`` splits it, the one speaker split of every
+real-speech tool (this file has no split of its own), so no speaker heard here was heard by any tuning.
+It mixes them over the real noises of ``../shared/noise`` at 20/12/6 dB SNR (speech level measured over
+its voiced frames, noise over the whole track), writes the stream WAV
 and a truth TSV, and feeds the stream to ``gcs-voice recognize --segment --json`` AS ONE FILE in a real
 subprocess. Then it counts, per noise and SNR:
 
@@ -32,58 +33,30 @@ import subprocess
 import sys
 import time
 import wave
-import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
+from tools.real_speech import SHARED, Recording, load_recordings
+
 ROOT = Path(__file__).resolve().parent.parent
-#: ../shared beside the checkout (as the tests find it); GCS_VOICE_SHARED overrides
-SHARED = Path(os.environ.get("GCS_VOICE_SHARED", ROOT.parent / "shared"))
 RATE = 16_000
 NOISE_FILES = {"kitchen": "doing_the_dishes.wav", "tap": "running_tap.wav", "machine": "exercise_bike.wav",
                "cat": "dude_miaowing.wav"}
 SNRS = (20.0, 12.0, 6.0)
 SPEECH_DBFS = -26.0  # every utterance is brought to this voiced level: a person at a steady distance
-TEST_PERCENT = 40
-
-
-@dataclass(frozen=True)
-class Clip:
-    """One real recording: its path, the right answer (an action class or none) and its kind."""
-
-    path: Path
-    truth: str
-    kind: str  # command / word / sentence
 
 
 @dataclass(frozen=True)
 class Placed:
     """A clip placed in a stream: where its audio and its voiced part are, in seconds."""
 
-    clip: Clip
+    clip: Recording
     start_s: float
     end_s: float
     voiced_start_s: float
     voiced_end_s: float
-
-
-def held_out(speech: Path = SHARED / "speech", part: str = "test") -> list[Clip]:
-    """The test (or dev) part of the real recordings: a stable hash of the speaker (for sentences, the file)."""
-    lines = (speech / "labels.tsv").read_text(encoding="utf-8").splitlines()
-    header = lines[0].split("\t")
-    clips = []
-    for line in lines[1:]:
-        row = dict(zip(header, line.split("\t")))
-        sentence = "_sentences" in row["path"]
-        key = row["path"] if sentence or not row.get("speaker") else row["speaker"]
-        if (zlib.crc32(key.encode()) % 100 < TEST_PERCENT) != (part == "test"):
-            continue
-        truth = "none" if row["class"] in ("none", "_none", "") else row["class"]
-        kind = "sentence" if sentence else ("command" if truth != "none" else "word")
-        clips.append(Clip(speech / row["path"], truth, kind))
-    return clips
 
 
 def read_wav(path: Path) -> np.ndarray:
@@ -119,7 +92,7 @@ def voiced_level(x: np.ndarray, frame: int = 320) -> tuple[float, int, int]:
     return float(np.sqrt(np.mean(sel**2))), int(idx[0] * frame) if n else 0, int((idx[-1] + 1) * frame) if n else x.size
 
 
-def choose(clips: list[Clip], count: int, rng: np.random.Generator) -> list[Clip]:
+def choose(clips: list[Recording], count: int, rng: np.random.Generator) -> list[Recording]:
     """70 % commands (every class represented), 15 % non-command words, 15 % sentences, shuffled."""
     by_kind = {k: [c for c in clips if c.kind == k] for k in ("command", "word", "sentence")}
     n_cmd = round(count * 0.7)
@@ -133,7 +106,7 @@ def choose(clips: list[Clip], count: int, rng: np.random.Generator) -> list[Clip
     return [picked[i] for i in rng.permutation(len(picked))]
 
 
-def build_stream(clips: list[Clip], noise: np.ndarray | None, snr_db: float | None, seed: int,
+def build_stream(clips: list[Recording], noise: np.ndarray | None, snr_db: float | None, seed: int,
                  pause_s: tuple[float, float] = (1.5, 6.0)) -> tuple[np.ndarray, list[Placed]]:
     """Clips at random pauses (seeded) over a noise track; each clip at SPEECH_DBFS over its voiced part."""
     rng = np.random.default_rng(seed)
@@ -161,7 +134,7 @@ def build_stream(clips: list[Clip], noise: np.ndarray | None, snr_db: float | No
 
 def write_truth(path: Path, placed: list[Placed]) -> None:
     rows = ["index\tstart_s\tend_s\tvoiced_start_s\tvoiced_end_s\ttruth\tkind\tpath"]
-    rows += [f"{i}\t{p.start_s:.3f}\t{p.end_s:.3f}\t{p.voiced_start_s:.3f}\t{p.voiced_end_s:.3f}\t{p.clip.truth}\t"
+    rows += [f"{i}\t{p.start_s:.3f}\t{p.end_s:.3f}\t{p.voiced_start_s:.3f}\t{p.voiced_end_s:.3f}\t{p.clip.action or 'none'}\t"
              f"{p.clip.kind}\t{p.clip.path}" for i, p in enumerate(placed)]
     path.write_text("\n".join(rows) + "\n", encoding="utf-8")
 
@@ -231,12 +204,12 @@ def score(rows: list[dict], placed: list[Placed], total_s: float) -> Counts:
                 actions[best].append(row["action"])
     for i, p in enumerate(placed):
         got = actions[i]
-        if p.clip.truth == "none":
+        if p.clip.action is None:
             c.others += 1
             c.false_speech += len(got)
         else:
             c.commands += 1
-            if any(a != p.clip.truth for a in got):
+            if any(a != p.clip.action for a in got):
                 c.wrong += 1
             elif got:
                 c.right += 1
@@ -275,7 +248,7 @@ def main(argv: list[str] | None = None) -> int:
     extra = ["--model", args.model] + (["--engine", args.engine] if args.engine else []) + \
         (["--vad", args.vad] if args.vad else [])
     work = Path(args.work)
-    clips = choose(held_out(SHARED / "speech"), args.utterances, np.random.default_rng(args.seed))
+    clips = choose(load_recordings(split="test"), args.utterances, np.random.default_rng(args.seed))
     lines = []
     shown_cmd = ""
     for noise_name, snr in conditions:
@@ -300,7 +273,8 @@ def main(argv: list[str] | None = None) -> int:
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         f"Each stream: {args.utterances} real utterances from the held-out test part of `../shared/speech` "
-        f"(speaker-hash split, {TEST_PERCENT} % test; 70 % commands, 15 % non-command words, 15 % sentences), "
+        "(the test split of `python -m tools.real_speech`, speakers no tuning heard; 70 % commands, "
+        "15 % non-command words, 15 % sentences), "
         f"seed {args.seed}, pauses 1.5-6 s, each utterance at {SPEECH_DBFS:g} dBFS over its voiced frames; the real "
         "noise under the whole stream at the stated SNR. The stream WAV is fed as one file to "
         f"`{shown_cmd.rsplit(' ', 1)[0]} STREAM.wav`.",

@@ -57,6 +57,7 @@ class Recording:
     speaker: str
     split: str
     kind: str
+    lang: str
 
 
 def split_of(key: str, dev_fraction: float = DEV_FRACTION) -> str:
@@ -77,7 +78,7 @@ def load_recordings(speech_dir: Path | None = None, split: str | None = None) ->
             key = row["path"] if row["speaker"] == UNKNOWN_SPEAKER else row["speaker"]
             kind = "sentence" if "/_sentences/" in row["path"] else ("word" if row["class"] == "none" else "command")
             rec = Recording(speech_dir / row["path"], None if row["class"] == "none" else row["class"], row["word"],
-                            row["speaker"], split_of(key), kind)
+                            row["speaker"], split_of(key), kind, row["lang"])
             if split is None or rec.split == split:
                 out.append(rec)
     return out

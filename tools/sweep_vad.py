@@ -1,10 +1,11 @@
 """Choose the Silero segmenter's start/end thresholds on streams built from the dev part of the real speech.
 
 Builds the same kind of stream as tools/bench_stream.py (60 utterances at random pauses, real noise at a
-measured SNR) from the dev part of ``../shared/speech`` (never the test part that bench_stream reports
-on), segments it with each start/end threshold pair and counts: segments, utterances found as exactly
-one segment, utterances missed (no segment), and segments on noise alone. No recogniser runs: this is the
-segmenter only. The chosen pair goes in ``gcs_voice/audio/vad.toml``.
+measured SNR) from the dev part of ``../shared/speech``: ``tools.real_speech.load_recordings(split="dev")``,
+the one speaker split of every real-speech tool (this file has no split of its own), never the test
+speakers that bench_stream reports on. It segments it with each start/end threshold pair and counts:
+segments, utterances found as exactly one segment, utterances missed (no segment), and segments on noise
+alone. No recogniser runs: this is the segmenter only. The chosen pair goes in ``gcs_voice/audio/vad.toml``.
 
     python -m tools.sweep_vad --out docs/bench/vad_sweep.md
 """
@@ -19,7 +20,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import NOISE_FILES, SHARED, build_stream, choose, held_out, read_wav
+from tools.bench_stream import NOISE_FILES, build_stream, choose, read_wav
+from tools.real_speech import SHARED, load_recordings
 
 PAIRS = ((0.5, 0.35), (0.4, 0.25), (0.3, 0.2), (0.2, 0.12))
 
@@ -33,7 +35,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--seed", type=int, default=2)
     p.add_argument("--out", default=None)
     args = p.parse_args(argv)
-    clips = choose(held_out(SHARED / "speech", part="dev"), 60, np.random.default_rng(args.seed))
+    clips = choose(load_recordings(split="dev"), 60, np.random.default_rng(args.seed))
     base = load_vad_settings(method="silero")
     lines = []
     for cond in args.conditions.split(","):
@@ -58,7 +60,8 @@ def main(argv: list[str] | None = None) -> int:
         "Command: `" + " ".join(["python -m tools.sweep_vad", *(shlex.quote(a) for a in
                                                                (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
-        f"One stream of 60 utterances from the dev part of `../shared/speech` (seed {args.seed}; the other "
+        f"One stream of 60 utterances from the dev split of `../shared/speech` (`python -m tools.real_speech`; "
+        f"seed {args.seed}; the other "
         "settings as in `gcs_voice/audio/vad.toml`), per noise condition (name + SNR dB over the voiced frames).",
         "",
         "| condition | start / end threshold | segments | utterances as one segment | utterances missed | "
