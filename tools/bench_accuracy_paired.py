@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> int:
                                           min_confidence=float(value))
     cells = sorted({(it.lang, it.noise) for it in both}, key=lambda c: (c[1] == "real", c))
     print("Cells: commands right / wrong class / rejected, non-commands acted on.\n")
-    print(f"| lang | noise | n commands / non-commands | " + " | ".join(
+    print("| lang | noise | n commands / non-commands | " + " | ".join(
         f"{e} + {args.matcher}" for e in decided) + " |")
     print("|---" * (3 + len(decided)) + "|")
     for lang, noise in cells:

@@ -48,8 +48,6 @@ LOOP_PERIOD_S = 0.05
 FINAL_STOP_S = 0.6
 #: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
 ON_GROUND_HEIGHT_M = 0.2
-#: when the link has no readiness rules (a test double): how long to wait for landed and disarmed
-DEFAULT_LANDED_TIMEOUT_S = 40.0
 #: signals that end a session with the vehicle stopped first: Ctrl-C, ``kill`` / a service manager, a
 #: closed terminal. The exit status is 128 + the signal's number (130, 143, 129), as a shell reports it.
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
@@ -282,7 +280,7 @@ class Bridge:
                       sent_t=time.time())
         try:
             result = self._operation(action)
-            ok = bool(getattr(result, "ok", False))
+            ok = result.ok
             self.bus.emit("flight", f"{action}: {result}", what=action, ok=ok, detail=str(result),
                           utterance_end_t=request.utterance_end_t)
             request.accepted = ok
@@ -321,7 +319,7 @@ class Bridge:
     def shutdown(self) -> None:
         """Stop the vehicle (hold where it is) and keep that on the wire; after "land", wait for touchdown."""
         if self._busy == "land" and self._op_thread is not None:
-            self._op_thread.join(timeout=float(getattr(self.link.settings, "mode_confirm_s", 3.0)) + 5.0)
+            self._op_thread.join(timeout=self.link.settings.mode_confirm_s + 5.0)
         if self._landing and not self._interrupted:
             self._wait_landed()
             return
@@ -340,8 +338,7 @@ class Bridge:
 
     def _wait_landed(self) -> None:
         """Wait for EXTENDED_SYS_STATE ON_GROUND and a disarmed HEARTBEAT, within the time limit; say which."""
-        rules = getattr(self.link, "readiness_rules", None)
-        limit_s = getattr(rules, "landed_timeout_s", DEFAULT_LANDED_TIMEOUT_S)
+        limit_s = self.link.readiness_rules.landed_timeout_s
         start = time.monotonic()
         self.bus.emit("flight", f"waiting up to {limit_s:g} s for the vehicle to land and disarm", what="landed",
                       ok=None, detail="waiting")
