@@ -8,7 +8,6 @@ imports ``sim_bridge``).
 
 from __future__ import annotations
 
-import json
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +15,7 @@ import rooms
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.collisions import parse_hit
 from gcs_voice.session.flight_log import Flight, read_flight, setpoint_action
+from gcs_voice.session.session_log import read_session_log
 
 __all__ = ["Room", "Box", "CommandMark", "load_room", "commands_from_session_log",
            "commands_from_setpoints", "collisions_for_plot", "plot_flight", "draw_flight"]
@@ -80,55 +80,33 @@ def load_room(name_or_path: str) -> Room:
     return Room(room.name, bounds, boxes, room.start_xy_m[0], room.start_xy_m[1])
 
 
+def _session_events(path: str | Path, kind: str, strict: bool = False) -> list[dict]:
+    """The events of one kind in a session log (one reader: ``read_session_log``). An unreadable log is a
+    PlotError when ``strict``, else no events (the plot is still drawn from the tlog)."""
+    try:
+        events = read_session_log(path)
+    except (OSError, UnicodeDecodeError) as exc:
+        if strict:
+            raise PlotError(f"{path}: cannot read session log: {exc}") from None
+        return []
+    return [event for event in events if event.get("kind") == kind]
+
+
 def commands_from_session_log(path: str | Path) -> list[CommandMark]:
     """Commands the bridge sent, from its JSON-lines session log (events of kind ``command``)."""
-    marks: list[CommandMark] = []
-    try:
-        lines = Path(path).read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise PlotError(f"{path}: cannot read session log: {exc}") from None
-    for line in lines:
-        try:
-            event = json.loads(line)
-        except json.JSONDecodeError:
-            continue  # a session cut short may leave half a line
-        if isinstance(event, dict) and event.get("kind") == "command" and event.get("action"):
-            heard = event.get("phrase") or ""
-            marks.append(CommandMark(float(event["t"]), str(event["action"]), str(heard)))
-    return marks
+    return [CommandMark(float(event["t"]), str(event["action"]), str(event.get("phrase") or ""))
+            for event in _session_events(path, "command", strict=True) if event.get("action")]
 
 
 def rejections_from_session_log(path: str | Path) -> list[tuple[float, str]]:
     """(time, what was heard) of each utterance the matcher rejected (no action)."""
-    out: list[tuple[float, str]] = []
-    try:
-        lines = Path(path).read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError):
-        return out
-    for line in lines:
-        try:
-            event = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if isinstance(event, dict) and event.get("kind") == "rejected":
-            out.append((float(event["t"]), str(event.get("text") or "")))
-    return out
+    return [(float(event["t"]), str(event.get("text") or "")) for event in _session_events(path, "rejected")]
 
 
 def link_losses_from_session_log(path: str | Path) -> list[tuple[float, float | None]]:
     """(lost, back) UNIX times of each link loss in a session log; back is None if it never returned."""
     spans: list[tuple[float, float | None]] = []
-    try:
-        lines = Path(path).read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError):
-        return spans
-    for line in lines:
-        try:
-            event = json.loads(line)
-        except json.JSONDecodeError:
-            continue
-        if not isinstance(event, dict) or event.get("kind") != "link":
-            continue
+    for event in _session_events(path, "link"):
         if event.get("state") == "lost":
             spans.append((float(event["t"]), None))
         elif event.get("state") == "restored" and spans and spans[-1][1] is None:
@@ -151,19 +129,7 @@ def collisions_for_plot(flight: Flight, session_log: str | Path | None) -> list[
     """(time, what was hit): the session log's collision events, else the tlog's "SIM Hit" texts that are
     not the ground (without the log, a touchdown cannot be told from a crash)."""
     if session_log is not None:
-        out = []
-        try:
-            lines = Path(session_log).read_text(encoding="utf-8").splitlines()
-        except (OSError, UnicodeDecodeError):
-            lines = []
-        for line in lines:
-            try:
-                event = json.loads(line)
-            except json.JSONDecodeError:
-                continue
-            if isinstance(event, dict) and event.get("kind") == "collision":
-                out.append((float(event["t"]), str(event.get("obstacle") or "?")))
-        return out
+        return [(float(event["t"]), str(event.get("obstacle") or "?")) for event in _session_events(session_log, "collision")]
     hits = [(t, parse_hit(text)) for t, text in flight.statustexts]
     return [(t, hit.obstacle) for t, hit in hits if hit is not None and hit.obstacle.lower() != "ground"]
 
