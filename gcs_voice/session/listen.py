@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gcs_voice.audio.sources import pcm_to_chunks
 from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.session.events import EventBus
@@ -38,7 +39,6 @@ if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers
 __all__ = ["VoicePipeline", "StopPath", "ScriptStep", "read_utterance", "run_script", "run_microphone",
            "start_voice_thread", "LATE_S"]
 
-CHUNK_BYTES = 3200  # 0.1 s of 16 kHz int16: what a microphone callback would deliver
 BYTES_PER_S = 32_000
 #: a decision later than this after the end of its utterance is said: the pilot may have moved on
 LATE_S = 2.0
@@ -137,14 +137,14 @@ class VoicePipeline:
         spot = self.stop_path if recorded and bridge is not None else None
         stream = self.recognizer.start_stream(self.lang)
         started = time.monotonic()
-        for n, i in enumerate(range(0, len(pcm), CHUNK_BYTES)):
+        for chunk in pcm_to_chunks(pcm):
             if recorded and self.realtime:
-                lag_s = started + n * CHUNK_BYTES / BYTES_PER_S - time.monotonic()
+                lag_s = started + chunk.start_s - time.monotonic()
                 if lag_s > 0:
                     time.sleep(lag_s)
             if spot is not None:
-                spot.feed(bridge, pcm[i:i + CHUNK_BYTES])
-            stream.accept(pcm[i:i + CHUNK_BYTES])
+                spot.feed(bridge, chunk.pcm)
+            stream.accept(chunk.pcm)
         if recorded and self.realtime:
             lag_s = started + len(pcm) / BYTES_PER_S - time.monotonic()
             if lag_s > 0:
