@@ -192,7 +192,20 @@ class WhisperRecognizer:
         padded = np.zeros(window, dtype=np.float32)
         padded[: audio.size] = audio
         features = self.model.feature_extractor(padded)[:, :-1]
-        return self.model.encode(features), features.shape[-1]
+        encoded = self.model.encode(features)
+        # The decoder's cost grows with every encoder position it attends to, once per scored phrase:
+        # keep the utterance and score_crop_s after it (2 mel frames per position), not the silent rest
+        # of the window, which only gave the encoder its context.
+        crop_s = float(s.get("score_crop_s", 0.0))
+        if crop_s > 0:
+            keep = int(math.ceil((audio.size / SAMPLE_RATE + crop_s) * 50))
+            array = np.asarray(encoded)
+            if keep < array.shape[1]:
+                import ctranslate2
+
+                encoded = ctranslate2.StorageView.from_array(np.ascontiguousarray(array[:, :keep]))
+                return encoded, 2 * keep
+        return encoded, features.shape[-1]
 
     def phrase_forms(self, lang: str):
         """The dictionary's phrases tokenised as Whisper writes them (once per language)."""
