@@ -297,7 +297,9 @@ def report(engines: list[str]) -> str:
             dev = load_recordings(split="dev")
             lines += [f"### Variants tried ({engine}, dev split, clean, shipped thresholds)", "",
                       "Each made with `python -m tools.bench_real recognise --split dev --conditions clean --set KEY=VALUE "
-                      "--tag TAG`; TAG `wN` = `score_window_s=N` (0 = the utterance plus 0.3 s only).", "",
+                      "--tag TAG`: `w8` = `--set score_crop_s=0` (the decoder attends to the whole 8 s window), `w30` = "
+                      "`--set score_window_s=30 --set score_crop_s=0` (Whisper's own 30 s window), `w8cN` = "
+                      "`--set score_crop_s=N` (the decoder attends to the utterance and N s after it; shipped: 2).", "",
                       "| variant | best phrase of the right class | commands right | wrong | non-commands acted on |",
                       "| --- | --- | --- | --- | --- |"]
             en = load_language("en")
