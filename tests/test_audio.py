@@ -214,3 +214,25 @@ def test_the_segmenter_tells_its_listener_each_utterance_as_it_is_spoken(tmp_pat
     # the listener saw exactly each utterance's audio (and the silence that ended it), before its end
     first = b"".join(heard[:ends[0]])
     assert first.startswith(utterances[0].pcm)
+
+
+def test_a_tentative_utterance_is_the_one_yielded_when_the_silence_runs_out(tmp_path):
+    """Silero: the tentative utterance (announced before the closing silence is over) has exactly the PCM
+    of the utterance yielded after it; a pause shorter than the closing silence gives a tentative guess
+    that the longer, final utterance does not match."""
+    samples = np.frombuffer(read_wav(say("go up", tmp_path / "go_up.wav")), "<i2")
+    loud = np.flatnonzero(np.abs(samples) > 200)
+    word = samples[loud[0]:loud[-1] + 1].tobytes()  # without espeak-ng's own leading and trailing silence
+    brief = _silence(0.2)  # longer than post_pad_s, shorter than min_silence_s: the utterance goes on
+    pcm = _silence(0.6) + word + brief + word + _silence(0.8) + word + _silence(0.8)
+    order: list[tuple[str, bytes]] = []
+    for utt in segment_utterances(pcm_to_chunks(pcm), on_tentative=lambda u: order.append(("tentative", u.pcm))):
+        order.append(("final", utt.pcm))
+    finals = [p for kind, p in order if kind == "final"]
+    assert len(finals) == 2
+    for final in finals:
+        at = order.index(("final", final))
+        assert order[at - 1] == ("tentative", final)  # announced just before, with the same audio
+    # the pause inside the first utterance was announced too, and is not what came out
+    first_tentatives = [p for kind, p in order[:order.index(("final", finals[0]))] if kind == "tentative"]
+    assert len(first_tentatives) >= 2 and first_tentatives[0] != finals[0]

@@ -129,3 +129,33 @@ def test_a_decision_later_than_late_s_is_said(tmp_path: Path, monkeypatch) -> No
     pipeline.hear(pcm, "up.wav", recorded=True)
     late = [e for e in bus.history if e.kind == "late"]
     assert len(late) == 1 and late[0].data["late_s"] >= 0.0 and "late: decided" in late[0].msg
+
+
+def test_a_speculated_decision_is_the_decision_and_only_for_its_own_audio(tmp_path: Path, whisper_model_dir: Path) -> None:
+    """Whisper (the default engine): an utterance recognised while its closing silence ran out is decided
+    exactly as it would be afresh; a guess for other audio is not used."""
+    from gcs_voice.asr.registry import load_recognizer
+    from gcs_voice.domain.dictionary import load_language
+    from gcs_voice.session import listen
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+    from tests.asr_speech import pcm_of
+
+    en = load_language("en")
+    bus = EventBus()
+    pipeline = listen.VoicePipeline(load_recognizer("whisper", [en], model=str(whisper_model_dir)),
+                                    get_matcher(DEFAULT_MATCHER), [en], "en", bus, realtime=False)
+    up, stop = pcm_of("go up", tmp_path), pcm_of("stop", tmp_path)
+
+    def heard() -> dict:
+        return [e for e in bus.history if e.kind == "heard"][-1].data
+
+    fresh = pipeline.hear(up, "microphone", utterance_end_t=1.0)
+    assert heard()["speculated"] is False
+    pipeline.speculate(up)
+    early = pipeline.hear(up, "microphone", utterance_end_t=2.0)
+    assert heard()["speculated"] is True and early == fresh and early.action == "up"
+    pipeline.speculate(up)  # the utterance went on: what ends is other audio
+    other = pipeline.hear(stop, "microphone", utterance_end_t=3.0)
+    assert heard()["speculated"] is False and other.action == "stop"
+    pipeline.hear(up, "microphone", utterance_end_t=4.0)  # a guess is used once at most
+    assert heard()["speculated"] is False

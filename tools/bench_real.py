@@ -348,6 +348,79 @@ def timing(engine: str, model: str | None, n: int) -> str:
             f"| {p50:.0f} ms | {p95:.0f} ms | {max(times):.0f} ms | {sum(times) / 1000 / audio_s:.3f} |\n")
 
 
+def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) -> str:
+    """Time to a decision on the microphone path: ``n`` clean test-split files, 1.5 s apart, fed in real
+    time (100 ms chunks) through the Silero segmenter and ``listen.run_microphone`` exactly as a live
+    session runs them (no flight). Timed from the end of speech (the last window Silero called speech)
+    and from the close of the utterance (after the closing silence) to the decision. Returns markdown."""
+    import os
+    import threading
+
+    from gcs_voice.asr.registry import load_recognizer
+    from gcs_voice.audio.sources import pcm_to_chunks
+    from gcs_voice.audio.vad import load_vad_settings, segment_utterances
+    from gcs_voice.session import listen
+    from gcs_voice.session.events import EventBus
+
+    name, mode = ENGINES[engine]
+    en = load_language("en")
+    recognizer = load_recognizer(name, [en], model=model, mode=mode)
+    recs = load_recordings(split="test")
+    commands = [r for r in recs if r.kind == "command"]
+    others = [r for r in recs if r.kind != "command"]
+    picked = [x for pair in zip(commands[::2], others[::2]) for x in pair][:n]
+    gap = np.zeros(int(1.5 * 16_000), np.float32)
+    audio = np.concatenate([gap] + [x for r in picked for x in (condition_audio(r, "clean"), gap)])
+    pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
+    bus = EventBus()
+    pipeline = listen.VoicePipeline(recognizer, get_matcher(MATCHER), [en], "en", bus)
+    pipeline.hear(pcm[:32_000], "warm-up")  # model loading is not a decision
+    bus.history.clear()
+    post_pad_s = load_vad_settings().silero.post_pad_s
+    closed: dict[float, float] = {}  # utterance end time -> wall time the segmenter closed it
+    tentatives = listen.TentativeUtterances() if speculate else None
+
+    class Sink:  # the bridge's side of run_microphone: nothing is flown
+        finished = False
+
+        def submit(self, request):
+            return request
+
+    def utterances():
+        t0 = time.time() + 0.05
+
+        def realtime():
+            for chunk in pcm_to_chunks(pcm):
+                wait = t0 + chunk.start_s + 0.1 - time.time()  # a chunk exists once its 100 ms were spoken
+                if wait > 0:
+                    time.sleep(wait)
+                yield chunk
+
+        for utt in segment_utterances(realtime(), on_tentative=(lambda u: tentatives(u.pcm)) if tentatives else None):
+            closed[t0 + utt.end_s] = time.time()
+            yield utt.pcm, t0 + utt.end_s
+
+    voice = threading.Thread(target=listen.run_microphone, args=(pipeline, Sink(), utterances(), False, tentatives))
+    voice.start()
+    voice.join()
+    heard = [e for e in bus.history if e.kind == "heard"]
+    from_speech = [(e.t - (e.data["utterance_end_t"] - post_pad_s)) * 1000 for e in heard]
+    from_close = [(e.t - closed[e.data["utterance_end_t"]]) * 1000 for e in heard]
+    used = sum(1 for e in heard if e.data.get("speculated"))
+    load = os.getloadavg()[0]
+    label = "decided while the closing silence ran out (speculation)" if speculate else "no speculation"
+    return (f"## Decision time on the microphone path, {engine}, {label}\n\n"
+            f"`python -m tools.bench_real timing --live{'' if speculate else ' --no-speculate'} --engine {engine} "
+            f"--n {n}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time through the Silero segmenter "
+            f"and `listen.run_microphone`; {len(heard)} utterances decided, {used} of them from the speculation. "
+            f"Load average at the end: {load:.2f} (2 cores).\n\n"
+            f"| measured from | p50 | p95 | max |\n| --- | --- | --- | --- |\n"
+            f"| the end of speech (last window Silero called speech) | {statistics.median(from_speech):.0f} ms | "
+            f"{np.percentile(from_speech, 95):.0f} ms | {max(from_speech):.0f} ms |\n"
+            f"| the close of the utterance (after {load_vad_settings().silero.min_silence_s:g} s of non-speech) | "
+            f"{statistics.median(from_close):.0f} ms | {np.percentile(from_close, 95):.0f} ms | {max(from_close):.0f} ms |\n")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.bench_real", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="stage", required=True)
@@ -370,6 +443,8 @@ def main(argv: list[str] | None = None) -> int:
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     tim.add_argument("--n", type=int, default=60)
     tim.add_argument("--out", type=Path, help="also write the section to this file (docs/bench/real_timing.md)")
+    tim.add_argument("--live", action="store_true", help="the microphone path in real time (segmenter + voice thread)")
+    tim.add_argument("--no-speculate", action="store_true", help="with --live: decide only once the utterance closed")
     args = parser.parse_args(argv)
     global _TAG
     _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
@@ -390,10 +465,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.stage == "tune":
         return tune(args.engine, args.write)
     if args.stage == "timing":
-        text = timing(args.engine, args.model if args.engine.startswith("whisper") else None, args.n)
+        model = args.model if args.engine.startswith("whisper") else None
+        text = (live_timing(args.engine, model, args.n, not args.no_speculate) if args.live
+                else timing(args.engine, model, args.n))
         print(text)
         if args.out:
-            args.out.write_text(text, encoding="utf-8")
+            with open(args.out, "a" if args.live else "w", encoding="utf-8") as out:
+                out.write(("\n" if args.live else "") + text)
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")

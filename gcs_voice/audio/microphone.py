@@ -32,11 +32,13 @@ def check_microphone(device: int | str | None = None) -> str:
 
 
 def microphone_utterances(talk: threading.Event | None = None, device: int | str | None = None,
-                          on_speech: Callable[[bytes | None], None] | None = None) -> Iterator[tuple[bytes, float]]:
+                          on_speech: Callable[[bytes | None], None] | None = None,
+                          on_tentative: Callable[[bytes], None] | None = None) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
-    ``on_speech`` hears each utterance's audio while it is spoken (see ``segment_utterances``).
+    ``on_speech`` hears each utterance's audio while it is spoken; ``on_tentative`` gets an utterance's
+    PCM as soon as it is final if no speech follows (see ``segment_utterances``).
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
@@ -51,5 +53,6 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                 chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 
-    for utterance in segment_utterances(gated(), on_speech=on_speech):
+    tentative = (lambda utt: on_tentative(utt.pcm)) if on_tentative is not None else None
+    for utterance in segment_utterances(gated(), on_speech=on_speech, on_tentative=tentative):
         yield utterance.pcm, t0[0] + utterance.end_s

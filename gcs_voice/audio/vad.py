@@ -176,21 +176,27 @@ SpeechListener = Callable[[bytes | None], None]
 
 
 def segment_utterances(chunks: Iterable[AudioChunk], settings: VadSettings | None = None,
-                       on_speech: SpeechListener | None = None) -> Iterator[Utterance]:
+                       on_speech: SpeechListener | None = None,
+                       on_tentative: Callable[[Utterance], None] | None = None) -> Iterator[Utterance]:
     """Yield utterances as soon as their end is heard (after the method's minimum silence).
 
     ``on_speech`` hears the audio of an utterance as it arrives, before the utterance is complete (the
     stop spotter uses it not to wait for the silence that ends it), then None at its end.
+    ``on_tentative`` (Silero only) gets the utterance as it WILL be yielded if no speech follows, as soon
+    as its content is final (``post_pad_s`` after the last speech), before the rest of the minimum silence:
+    a recogniser can decide it while the silence runs out. Speech that resumes makes a longer utterance,
+    so a tentative one is used only if the yielded utterance has the same PCM.
     """
     s = settings or load_vad_settings()
     listen = on_speech or (lambda pcm: None)
+    tentative = on_tentative or (lambda utt: None)
     if s.method == "silero":
         try:
             vad = SileroVad()
         except Exception as exc:  # noqa: BLE001 - no model or no onnxruntime: the energy VAD still works
             warnings.warn(f"Silero VAD unavailable ({exc}); using the energy VAD", RuntimeWarning, stacklevel=2)
         else:
-            yield from _silero_segments(chunks, s, vad, listen)
+            yield from _silero_segments(chunks, s, vad, listen, tentative)
             return
     yield from _energy_segments(chunks, s, listen)
 
@@ -207,7 +213,7 @@ def _windows(chunks: Iterable[AudioChunk], size_bytes: int) -> Iterator[bytes]:
 
 
 def _silero_segments(chunks: Iterable[AudioChunk], s: VadSettings, vad: SileroVad,
-                     listen: SpeechListener) -> Iterator[Utterance]:
+                     listen: SpeechListener, tentative: Callable[[Utterance], None]) -> Iterator[Utterance]:
     p = s.silero
     win_s = SILERO_WINDOW / SAMPLE_RATE
     pre_windows = max(0, round(p.pre_roll_s / win_s))
@@ -244,6 +250,11 @@ def _silero_segments(chunks: Iterable[AudioChunk], s: VadSettings, vad: SileroVa
             silent_run = 0
         else:
             silent_run += 1
+            if silent_run == max(1, post_windows) and silent_run < silence_windows:
+                # What the end below will keep if no speech comes back: final from now on.
+                early = emit(speech[: len(speech) - silent_run + min(silent_run, post_windows)], start_i)
+                if early:
+                    tentative(early)
         if silent_run >= silence_windows or len(speech) >= max_windows:
             keep = speech[: len(speech) - silent_run + min(silent_run, post_windows)]
             utt = emit(keep, start_i)

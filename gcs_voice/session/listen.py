@@ -31,12 +31,12 @@ from gcs_voice.understanding.decision import Decision
 from gcs_voice.session.events import EventBus
 
 if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers load when a session picks them
-    from gcs_voice.asr.base import Recognizer
+    from gcs_voice.asr.base import Recognition, Recognizer
     from gcs_voice.asr.stop_spotter import SpotStream, StopSpotter
     from gcs_voice.domain.dictionary import Dictionary
     from gcs_voice.understanding.matcher import Matcher
 
-__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "read_utterance", "run_script", "run_microphone",
+__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "TentativeUtterances", "read_utterance", "run_script", "run_microphone",
            "start_voice_thread", "LATE_S"]
 
 BYTES_PER_S = 32_000
@@ -126,6 +126,24 @@ class VoicePipeline:
         self.dictionaries = list(dictionaries)
         self.lang = lang  # None = let the engine / matcher choose among the dictionaries (--lang auto)
         self.bus = bus
+        #: (PCM, its recognition) decided while the end-of-utterance silence ran out (``speculate``)
+        self._speculated: tuple[bytes, Recognition] | None = None
+
+    def speculate(self, pcm: bytes) -> None:
+        """Recognise a tentative utterance now; ``hear`` uses the result if the utterance ends as it is.
+
+        Every engine decides the same PCM the same way (the engine conformance test), so the early
+        result is the one ``hear`` would compute: only the time the silence took is saved.
+        """
+        self._speculated = None
+        recognition = self._recognise(pcm)
+        self._speculated = (pcm, recognition)
+
+    def _recognise(self, pcm: bytes) -> Recognition:
+        stream = self.recognizer.start_stream(self.lang)
+        for chunk in pcm_to_chunks(pcm):
+            stream.accept(chunk.pcm)
+        return stream.finish()
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
              recorded: bool = False, bridge: Bridge | None = None) -> Decision:
@@ -135,9 +153,11 @@ class VoicePipeline:
         microphone's is spotted by the ear thread as it is spoken).
         """
         spot = self.stop_path if recorded and bridge is not None else None
-        stream = self.recognizer.start_stream(self.lang)
+        speculated, self._speculated = self._speculated, None
+        early = speculated[1] if speculated is not None and not recorded and speculated[0] == pcm else None
+        stream = self.recognizer.start_stream(self.lang) if early is None else None
         started = time.monotonic()
-        for chunk in pcm_to_chunks(pcm):
+        for chunk in (pcm_to_chunks(pcm) if stream is not None else ()):
             if recorded and self.realtime:
                 lag_s = started + chunk.start_s - time.monotonic()
                 if lag_s > 0:
@@ -154,7 +174,8 @@ class VoicePipeline:
             spot.end(bridge, end_t)
         self.bus.emit("thinking", f"thinking… ({len(pcm) / BYTES_PER_S:.1f} s from {source})", source=source,
                       utterance_end_t=end_t)
-        recognition = stream.finish()
+        recognition = stream.finish() if stream is not None else early
+        assert recognition is not None
         heard_t = time.time()
         self.last_end_t = end_t
         alternatives = [h.text for h in recognition.hypotheses[:5]]
@@ -162,7 +183,8 @@ class VoicePipeline:
                       f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
                       text=recognition.text, alternatives=alternatives, engine=recognition.engine,
                       lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
-                      utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1))
+                      utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1),
+                      speculated=early is not None)
         decision = self.matcher.decide(recognition, self.dictionaries)
         late_s = time.time() - end_t
         if late_s > LATE_S:
@@ -227,16 +249,40 @@ def _sleep_unless_finished(bridge: Bridge, seconds: float) -> bool:
     return bridge.finished
 
 
+class TentativeUtterances:
+    """Where the segmenter's tentative utterances go: to the voice thread of ``run_microphone``.
+
+    Pass it to ``microphone_utterances(on_tentative=...)`` and to ``run_microphone``; until the voice
+    thread runs (or without it) tentative utterances are dropped.
+    """
+
+    def __init__(self) -> None:
+        self.sink: Callable[[bytes], None] | None = None
+
+    def __call__(self, pcm: bytes) -> None:
+        if self.sink is not None:
+            self.sink(pcm)
+
+
+@dataclass(frozen=True)
+class _Tentative:
+    pcm: bytes
+
+
 def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]],
-                   spotted_while_spoken: bool = False) -> None:
+                   spotted_while_spoken: bool = False, tentatives: TentativeUtterances | None = None) -> None:
     """Serve utterances from a live source (PCM, end time) until the bridge finishes.
 
     The source is read in its own thread (``ear``) and each utterance queued for the recogniser, so
     the next one is heard (and a stop in it spotted) while the recogniser is busy. Unless the source
     already fed the stop spotter as the words were spoken (``spotted_while_spoken``), the ear spots
-    each whole utterance before queueing it.
+    each whole utterance before queueing it. With ``tentatives``, an utterance the segmenter expects
+    to end is recognised while its closing silence runs out (when nothing else waits), and its
+    decision is taken at once if it does end that way.
     """
-    heard: queue.Queue[tuple[bytes, float] | BaseException | None] = queue.Queue()
+    heard: queue.Queue[tuple[bytes, float] | _Tentative | BaseException | None] = queue.Queue()
+    if tentatives is not None:
+        tentatives.sink = lambda pcm: heard.put(_Tentative(pcm))
 
     def ear() -> None:
         try:
@@ -259,6 +305,10 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             break
         if isinstance(item, BaseException):
             raise item
+        if isinstance(item, _Tentative):
+            if heard.empty():  # a real utterance waiting comes first; a stale guess is skipped
+                pipeline.speculate(item.pcm)
+            continue
         pcm, end_t = item
         pipeline.submit(bridge, pcm, "microphone", end_t)
 

@@ -18,7 +18,8 @@ from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.bridge import STOP_SIGNALS, Bridge, Request
 from gcs_voice.session.collisions import CollisionWatch
 from gcs_voice.session.events import Event, EventBus
-from gcs_voice.session.listen import ScriptStep, VoicePipeline, read_utterance, run_microphone, run_script, start_voice_thread
+from gcs_voice.session.listen import (ScriptStep, TentativeUtterances, VoicePipeline, read_utterance, run_microphone,
+                                      run_script, start_voice_thread)
 from gcs_voice.session.session_log import SessionLog, session_paths
 
 if TYPE_CHECKING:  # annotations only: the engines and matchers load when a session picks them
@@ -232,9 +233,11 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
 
             stop_path = pipeline.stop_path
             on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
+            tentatives = TentativeUtterances()  # decided while the closing silence runs out
             start_voice_thread(bridge, run_microphone, pipeline, bridge,
-                               microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech),
-                               stop_path is not None)
+                               microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
+                                                     on_tentative=tentatives),
+                               stop_path is not None, tentatives)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
 
