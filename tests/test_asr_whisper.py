@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 import pytest
 
 from gcs_voice.asr.registry import load_recognizer
@@ -182,3 +184,19 @@ def test_score_mode_auto_language_scores_every_language(whisper_score, tmp_path)
     assert result.lang == "es" and result.text == "baja"
     result, _ = _decide(whisper_score, pcm_of("turn left", tmp_path, "en-us"), "auto")
     assert result.lang == "en" and result.text == "turn left"
+
+
+def test_a_not_command_is_a_rival_class_of_every_phrase() -> None:
+    """A dictionary's not-commands ("four", "off") count in the class gap: a phrase that does not beat them
+    clearly is no action, whatever the phrases of other classes score."""
+    from gcs_voice.asr.whisper_score import PhraseScores
+    from gcs_voice.domain.dictionary import Phrase
+
+    forward = Phrase("forward", "forward", "go_forward")
+    up = Phrase("up", "up", "up")
+    alone = PhraseScores(((forward, -0.5), (up, -4.0)), "4", -0.4, 0.0)
+    rivalled = PhraseScores(((forward, -0.5), (up, -4.0)), "4", -0.4, 0.0, not_command=-0.3)
+    assert alone.class_gap == pytest.approx(3.5)
+    assert rivalled.class_gap == pytest.approx(-0.2)
+    only = PhraseScores(((forward, -0.5),), "forward", -0.5, 0.0)
+    assert only.class_gap == math.inf

@@ -59,6 +59,9 @@ def _write(tmp_path: Path, text: str) -> Path:
         ('[phrases]\nup = ["rise"]\n', "missing 'language'"),
         ('language = "xx"\nphrases = [\n', "invalid TOML"),
         ('language = "xx"\n[phrases]\nup = ["?!"]\n', "empty after normalisation"),
+        ('language = "xx"\nnot_commands = ["four", 4]\n[phrases]\nup = ["rise"]\n', "'not_commands' must be a list"),
+        ('language = "xx"\nnot_commands = ["Rise"]\n[phrases]\nup = ["rise"]\n', "not_commands 'Rise' are also phrases"),
+        ('language = "xx"\nnot_commands = ["go"]\n[phrases]\nup = ["go up"]\n', "not_commands 'go' begins the phrase 'go up'"),
     ],
 )
 def test_malformed_dictionary_names_file_and_phrase(tmp_path: Path, body: str, message: str) -> None:

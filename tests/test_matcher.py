@@ -252,3 +252,19 @@ def test_a_command_whisper_wrote_as_two_words_still_acts() -> None:
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse", 0.0), [ES]).action == "stop"
     # joining is no loophole: the joined pair must itself be a word of the class
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse en casa", 0.0), [ES]).action is None
+
+
+def test_evidence_limits_can_differ_by_language(tmp_path) -> None:
+    """[evidence.<engine>.lang.<lang>] overrides the engine's limits for one language (thresholds chosen on
+    English speakers need not hold for Spanish): the same class gap acts in one and not in the other."""
+    from dataclasses import replace
+
+    path = tmp_path / "thresholds.toml"
+    path.write_text("[evidence.whisper-score]\nmin_margin = -1.0\nmin_class_gap = 0.4\n"
+                    "[evidence.whisper-score.lang.es]\nmin_class_gap = 1.0\n", encoding="utf-8")
+    matcher = get_matcher("phonetic", thresholds_path=path)
+    english = _scored("go up", "Go up", 0.0, gap=0.7)
+    spanish = replace(_scored("sube", "Sube", 0.0, gap=0.7), lang="es")
+    assert matcher.decide(english, [EN]).action == "up"
+    decision = matcher.decide(spanish, [ES])
+    assert decision.action is None and "class_gap 0.70 < 1.00" in decision.reason

@@ -103,7 +103,10 @@ def recognise(engine: str, model: str | None, conditions: list[str], split: str 
     name, mode = ENGINES[engine]
     recognizer = load_recognizer(name, [load_language("en")], model=model, mode=mode)
     recognizer.settings.update(overrides or {})  # a variant of asr/engines.toml, cached under --tag
-    config = hashlib.sha1(json.dumps(recognizer.settings, sort_keys=True, default=str).encode()).hexdigest()[:12]
+    # the engine's settings and the dictionary it scores (its phrases and not-commands) make one configuration
+    dictionary = load_language("en")
+    config = hashlib.sha1((json.dumps(recognizer.settings, sort_keys=True, default=str)
+                           + dictionary.path.read_text(encoding="utf-8")).encode()).hexdigest()[:12]
     cache = {k: row for k, row in load_cache(engine).items() if row.get("config") == config}
     CACHE_DIR.mkdir(parents=True, exist_ok=True)
     recs = load_recordings(split=split)

@@ -33,6 +33,8 @@ __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "t
            "score_utterance"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
+#: the class of a dictionary's ``not_commands``: scored like phrases, never acted on
+NOT_A_COMMAND = ""
 
 
 def canonical_tokens(tokenizer, text: str) -> list[int]:
@@ -69,7 +71,7 @@ class PhraseForms:
     """
 
     dictionary: Dictionary
-    phrases: tuple[Phrase, ...]        # one entry per form
+    phrases: tuple[Phrase, ...]        # one entry per form; a not-command has action NOT_A_COMMAND
     tokens: tuple[tuple[int, ...], ...]
 
 
@@ -77,7 +79,8 @@ def phrase_forms(tokenizer, dictionary: Dictionary) -> PhraseForms:
     """The forms of every phrase of ``dictionary`` (see :class:`PhraseForms`)."""
     phrases: list[Phrase] = []
     tokens: list[tuple[int, ...]] = []
-    for phrase in dictionary.phrases:
+    rivals = [Phrase(text, text, NOT_A_COMMAND) for text in dictionary.not_commands]
+    for phrase in (*dictionary.phrases, *rivals):
         written = {phrase.text[:1].upper() + phrase.text[1:], phrase.text[:1].lower() + phrase.text[1:]}
         for text in sorted(written):
             phrases.append(phrase)
@@ -144,6 +147,8 @@ class PhraseScores:
     free_text: str
     free_logprob: float
     no_speech_prob: float
+    #: the best not-command's score (-inf when none was scored): a rival class of every phrase
+    not_command: float = -math.inf
 
     @property
     def best(self) -> tuple[Phrase, float] | None:
@@ -161,8 +166,8 @@ class PhraseScores:
         if not self.ranked:
             return 0.0
         winner, best = self.ranked[0][0].action, self.ranked[0][1]
-        rival = next((lp for p, lp in self.ranked if p.action != winner), None)
-        return math.inf if rival is None else best - rival
+        rival = max(max((lp for p, lp in self.ranked if p.action != winner), default=-math.inf), self.not_command)
+        return math.inf if rival == -math.inf else best - rival
 
 
 def _mean(logprobs: np.ndarray) -> float:
@@ -214,10 +219,15 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
     free_logprob = _mean(logprobs.pop()) if unit else -math.inf
     best: dict[int, tuple[Phrase, float]] = {}
+    not_command = -math.inf
     for i, lp in zip(chosen, logprobs):
         phrase, score = forms.phrases[i], _mean(lp)
+        if phrase.action == NOT_A_COMMAND:
+            not_command = max(not_command, score)
+            continue
         key = id(phrase)
         if key not in best or score > best[key][1]:
             best[key] = (phrase, score)
     ranked = tuple(sorted(best.values(), key=lambda item: item[1], reverse=True))
-    return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob))
+    return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
+                        not_command)

@@ -58,6 +58,9 @@ class Dictionary:
     phrases: tuple[Phrase, ...]
     skip_words: tuple[str, ...] = ()
     by_key: dict[str, Phrase] = field(default_factory=dict, compare=False, repr=False)
+    #: words people say near a drone that sound like commands ("four", "off"): a recogniser that weighs
+    #: alternatives scores them as rivals of the phrases, and no action follows when one is as likely
+    not_commands: tuple[str, ...] = ()
 
     def actions(self) -> tuple[str, ...]:
         """Action classes this dictionary covers, in canonical order."""
@@ -131,7 +134,10 @@ def load_dictionary(path: str | Path) -> Dictionary:
     skip = data.get("skip_words", [])
     if not isinstance(skip, list) or not all(isinstance(w, str) for w in skip):
         raise DictionaryError(f"{path}: 'skip_words' must be a list of strings")
-    unknown_keys = set(data) - {"language", "name", "skip_words", "phrases"}
+    others = data.get("not_commands", [])
+    if not isinstance(others, list) or not all(isinstance(w, str) and normalize_text(w) for w in others):
+        raise DictionaryError(f"{path}: 'not_commands' must be a list of non-empty strings")
+    unknown_keys = set(data) - {"language", "name", "skip_words", "phrases", "not_commands"}
     if unknown_keys:
         raise DictionaryError(f"{path}: unknown key(s) {', '.join(sorted(unknown_keys))}")
     table = data.get("phrases")
@@ -161,6 +167,14 @@ def load_dictionary(path: str | Path) -> Dictionary:
             by_key[key] = phrase
             phrases.append(phrase)
 
+    clash = [w for w in others if normalize_text(w) in by_key]
+    if clash:
+        raise DictionaryError(f"{path}: not_commands {', '.join(map(repr, clash))} are also phrases")
+    # a rival that a phrase starts with wins whenever only the phrase's first word is heard ("go" / "go up")
+    starts = [(w, p.text) for w in others for p in phrases if p.key.startswith(normalize_text(w) + " ")]
+    if starts:
+        word, text = starts[0]
+        raise DictionaryError(f"{path}: not_commands {word!r} begins the phrase {text!r}")
     return Dictionary(
         language=language.strip(),
         name=name,
@@ -168,4 +182,5 @@ def load_dictionary(path: str | Path) -> Dictionary:
         phrases=tuple(phrases),
         skip_words=tuple(normalize_text(w) for w in skip),
         by_key=by_key,
+        not_commands=tuple(others),
     )

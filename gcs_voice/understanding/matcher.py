@@ -236,7 +236,7 @@ class Matcher:
         return Levenshtein.normalized_distance(a, b)
 
     def _evidence_reason(self, recognition: Recognition) -> str:
-        for key, limit in evidence_limits(recognition.engine, self.thresholds_path).items():
+        for key, limit in evidence_limits(recognition.engine, self.thresholds_path, recognition.lang).items():
             kind, _, name = key.partition("_")
             value = recognition.extra.get(name)
             if value is None:

@@ -2,7 +2,7 @@
 
 Resolution order (later wins): ``[<matcher>]``, then ``[<matcher>.engine.<engine>]``, then the
 options given to ``get_matcher``. Engine evidence (Whisper's ``no_speech_prob``...) lives under
-``[evidence.<engine>]`` because it does not depend on the matcher.
+``[evidence.<engine>]`` because it does not depend on the matcher; ``[evidence.<engine>.lang.<lang>]`` for one language.
 """
 
 from __future__ import annotations
@@ -38,7 +38,7 @@ def load_thresholds(path: Path = THRESHOLDS_PATH) -> dict[str, Any]:
 def _numbers(table: dict[str, Any], where: str) -> dict[str, float]:
     out: dict[str, float] = {}
     for key, value in table.items():
-        if key == "engine":
+        if key in ("engine", "lang"):
             continue
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ThresholdsError(f"{THRESHOLDS_PATH}: [{where}] {key} must be a number")
@@ -55,11 +55,19 @@ def matcher_thresholds(matcher: str, engine: str | None, path: Path = THRESHOLDS
     return merged
 
 
-def evidence_limits(engine: str | None, path: Path = THRESHOLDS_PATH) -> dict[str, float]:
-    """Limits on engine evidence (``Recognition.extra``) for one engine; empty when none are set."""
+def evidence_limits(engine: str | None, path: Path = THRESHOLDS_PATH, lang: str | None = None) -> dict[str, float]:
+    """Limits on engine evidence (``Recognition.extra``) for one engine; empty when none are set.
+
+    ``[evidence.<engine>.lang.<lang>]`` overrides them for one language: limits chosen on one language's
+    speech need not hold for another's.
+    """
     if not engine:
         return {}
-    return _numbers(load_thresholds(path).get("evidence", {}).get(engine, {}), f"evidence.{engine}")
+    table = load_thresholds(path).get("evidence", {}).get(engine, {})
+    limits = _numbers(table, f"evidence.{engine}")
+    if lang:
+        limits.update(_numbers(table.get("lang", {}).get(lang, {}), f"evidence.{engine}.lang.{lang}"))
+    return limits
 
 
 def transcript_limits(engine: str | None, path: Path = THRESHOLDS_PATH) -> dict[str, float]:
