@@ -47,6 +47,10 @@ def test_the_spotted_stop_is_on_the_wire_before_the_main_decision(tmp_path: Path
     # that zero setpoint was a change: the vehicle was flying forward until the spotted stop
     go = [e for e in events if e["kind"] == "command" and e.get("action") == "go_forward"]
     assert go and go[0]["sent_t"] < stop_cmd["sent_t"], [e["msg"] for e in events]
-    moving = [s for s in flight.setpoints if go[0]["sent_t"] - 0.01 <= s.t_s < stop_cmd["sent_t"] - 0.01]
-    assert moving and all(abs(s.vx_m_s) + abs(s.vy_m_s) > 0.1 for s in moving)
+    # from go_forward's own setpoint on the wire (file order is send order) to the spotted stop, every
+    # setpoint moves: no stale hold, read before the command, went out after it
+    first_go = next(i for i, s in enumerate(flight.setpoints)
+                    if s.t_s >= go[0]["sent_t"] - 1.0 and abs(s.vx_m_s) + abs(s.vy_m_s) > 0.1)
+    moving = [s for s in flight.setpoints[first_go:] if s.t_s < stop_cmd["sent_t"] - 0.01]
+    assert moving and all(abs(s.vx_m_s) + abs(s.vy_m_s) > 0.1 for s in moving), moving[:3]
     assert speed_at(flight, flight.track.t_s[-1]) < 0.15

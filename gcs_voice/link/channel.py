@@ -55,6 +55,9 @@ class LinkChannel:
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)
         self._send_lock = threading.Lock()
+        #: held from reading the stream's source to sending its setpoint, and while the source changes: a
+        #: tick that read the old source cannot send it after a new command went out
+        self._tick_lock = threading.RLock()
         self._collectors: list[AckCollector] = []
         self._source: SetpointSource | None = None
         self._stop_first = False
@@ -231,11 +234,11 @@ class LinkChannel:
     # ---- setpoint stream ------------------------------------------------------------------------
     def start_stream(self, source: SetpointSource | None = None) -> None:
         """Re-send ``source(state)`` at ``setpoint_hz`` from now on (default: hold at the current heading)."""
-        with self._lock:
+        with self._tick_lock, self._lock:
             self._source = source or self._hold_source()
 
     def stop_stream(self) -> None:
-        with self._lock:
+        with self._tick_lock, self._lock:
             self._source = None
 
     @property
@@ -266,18 +269,21 @@ class LinkChannel:
         setpoint ``source`` decided (None while no vehicle was heard)."""
         if decided_s is None:
             decided_s = time.time()
-        with self._lock:
-            self._source = source
-        return self._stream_tick(decided_s)
+        with self._tick_lock:
+            with self._lock:
+                self._source = source
+            return self._stream_tick(decided_s)
 
     def _stream_tick(self, decided_s: float | None = None) -> Setpoint | None:
         """Ask the source for the setpoint and send it: the one route a streamed setpoint takes to the wire."""
+        with self._tick_lock:
+            return self._tick(time.time() if decided_s is None else decided_s)  # before the source decides
+
+    def _tick(self, decided_s: float) -> Setpoint | None:
         with self._lock:
             source, state = self._source, self.tracker.snapshot(time.monotonic())
         if source is None or state.system_id is None:
             return None
-        if decided_s is None:
-            decided_s = time.time()  # before the source decides: see send_setpoint
         if not state.link_ok:  # command nothing, but let the source see the loss (the mapper turns to stop)
             try:
                 return source(state)
