@@ -145,6 +145,19 @@ class Counts:
     sentences: int = 0
     sentences_acted: int = 0
 
+    def add(self, kind: str, expected: str | None, action: str | None) -> None:
+        """Count one decision: ``kind`` command, word or sentence; ``expected`` the command's class."""
+        if kind == "command":
+            self.commands += 1
+            self.right += action == expected
+            self.wrong += action is not None and action != expected
+        elif kind == "word":
+            self.words += 1
+            self.words_acted += action is not None
+        else:
+            self.sentences += 1
+            self.sentences_acted += action is not None
+
     @property
     def others(self) -> int:
         return self.words + self.sentences
@@ -161,17 +174,7 @@ def count(recs: list[Recording], condition: str, cache: dict[str, dict], matcher
         row = cache.get(_key(rec, condition))
         if row is None:
             continue
-        action = matcher.decide(_recognition(row), en).action
-        if rec.kind == "command":
-            c.commands += 1
-            c.right += action == rec.action
-            c.wrong += action is not None and action != rec.action
-        elif rec.kind == "word":
-            c.words += 1
-            c.words_acted += action is not None
-        else:
-            c.sentences += 1
-            c.sentences_acted += action is not None
+        c.add(rec.kind, rec.action, matcher.decide(_recognition(row), en).action)
     return c
 
 

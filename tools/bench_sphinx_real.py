@@ -120,17 +120,7 @@ def evaluate(rows: list[Recording], recs: dict[Path, Recognition], matcher: str,
     for row in rows:
         if row.split != split:
             continue
-        action = m.decide(recs[row.path], en).action
-        if row.kind == "command":
-            c.commands += 1
-            c.right += action == row.action
-            c.wrong += action is not None and action != row.action
-        elif row.kind == "word":
-            c.words += 1
-            c.words_acted += action is not None
-        else:
-            c.sentences += 1
-            c.sentences_acted += action is not None
+        c.add(row.kind, row.action, m.decide(recs[row.path], en).action)
     return c
 
 
