@@ -109,6 +109,22 @@ def test_ceiling_zeroes_only_the_climb() -> None:
     assert mapper.setpoint(flying(height_m=SETTINGS.ceiling_m + 1)).down_m_s == V  # coming back is allowed
 
 
+def test_on_change_is_called_once_per_automatic_stop_and_per_new_limit() -> None:
+    """The session loop sleeps until this wakes it: a change said once, nothing for a setpoint that changes nothing."""
+    mapper = ActionMapper(SETTINGS)
+    changes: list[tuple[str, str]] = []
+    mapper.on_change = lambda: changes.append((mapper.action, mapper.limit_reason))
+    mapper.apply("up", flying(height_m=SETTINGS.ceiling_m))
+    for _ in range(3):
+        mapper.setpoint(flying(height_m=SETTINGS.ceiling_m))
+    assert changes == [("up", f"ceiling {SETTINGS.ceiling_m:g} m")]
+    mapper.apply("down", flying(height_m=2.0))
+    mapper.setpoint(flying(height_m=2.0))   # the limit is gone: said too (the loop forgets it)
+    mapper.setpoint(flying(height_m=0.5))
+    mapper.setpoint(flying(height_m=0.5))
+    assert changes[1:] == [("down", ""), ("stop", "")] and "floor" in mapper.events[-1]
+
+
 def test_fence_blocks_outward_motion_only() -> None:
     r = SETTINGS.fence_radius_m
     mapper = ActionMapper(SETTINGS)

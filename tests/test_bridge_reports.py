@@ -1,4 +1,5 @@
-"""What the bridge reports is true: the mode after a link returns, a north heading as 0, a Ctrl-C stop at once.
+"""What the bridge reports is true: the mode after a link returns, the mapper's limits and automatic stops as they
+happen, a north heading as 0, a Ctrl-C stop at once.
 
 The link tests run against ``link_peer.ScriptedVehicle`` (a MAVLink vehicle on 127.0.0.1) so that the
 order of messages after a dropout can be chosen: telemetry first, the HEARTBEAT with the new mode last.
@@ -7,7 +8,7 @@ order of messages after a dropout can be chosen: telemetry first, the HEARTBEAT 
 from __future__ import annotations
 
 import threading
-import time
+from dataclasses import replace
 from pathlib import Path
 
 from gcs_voice.actions.mapper import ActionMapper
@@ -15,21 +16,27 @@ from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.link import VehicleLink
 from gcs_voice.link.state import VehicleState
 from gcs_voice.session.bridge import Bridge, Request, status_of
-from gcs_voice.session.events import EventBus
+from gcs_voice.session.events import Event, EventBus
 from gcs_voice.settings import load_settings
 from link_peer import PX4_HOLD, PX4_OFFBOARD, ScriptedVehicle
 
 
 def _event(bus: EventBus, timeout_s: float, **fields) -> dict | None:
-    """The first event whose fields match, waiting for it (None if it never comes)."""
-    deadline = time.monotonic() + timeout_s
-    while time.monotonic() < deadline:
-        for event in list(bus.history):
-            record = event.to_dict()
-            if all(record.get(k) == v for k, v in fields.items()):
-                return record
-        time.sleep(0.02)
-    return None
+    """The first event whose fields match, said before or within ``timeout_s`` (None if it never comes)."""
+    found: list[dict] = []
+    said = threading.Event()
+
+    def take(event: Event) -> None:
+        record = event.to_dict()
+        if not said.is_set() and all(record.get(k) == v for k, v in fields.items()):
+            found.append(record)
+            said.set()
+
+    bus.subscribe(take)
+    for event in list(bus.history):
+        take(event)
+    said.wait(timeout_s)
+    return found[0] if found else None
 
 
 def test_link_restored_reports_the_mode_the_vehicle_is_in_now(tmp_path: Path) -> None:
@@ -58,6 +65,35 @@ def test_link_restored_reports_the_mode_the_vehicle_is_in_now(tmp_path: Path) ->
     assert restored is not None
     assert restored["mode"] == link.state.mode != "OFFBOARD", restored
     assert "OFFBOARD" not in restored["msg"]
+
+
+def test_the_mappers_limits_and_automatic_stops_are_said_when_they_happen(tmp_path: Path) -> None:
+    """The loop sleeps until something wakes it: a limit decided in its own thread (the command's first
+    setpoint) and an automatic stop decided in the link's stream thread (the floor) are both said."""
+    settings = replace(load_settings(), ceiling_m=1.5)
+    bus = EventBus()
+    with ScriptedVehicle("ardupilot") as vehicle:
+        link = VehicleLink(vehicle.connection, settings, tlog_path=tmp_path / "s.tlog")
+        link.connect(timeout_s=10)
+        bridge = Bridge(link, ActionMapper(settings), bus, 1.5)   # take off to the ceiling
+        loop = threading.Thread(target=bridge.run, daemon=True)
+        loop.start()
+        try:
+            took_off = bridge.submit(Request("take_off", "script"))
+            assert bridge.flying_ready.wait(20) and took_off.done.wait(5), [e.msg for e in bus.history][-10:]
+            up = bridge.submit(Request("up", "script"))
+            assert up.done.wait(5) and up.accepted
+            assert _event(bus, 5, kind="refused", msg="up limited: ceiling 1.5 m"), [e.msg for e in bus.history][-10:]
+            down = bridge.submit(Request("down", "script"))
+            assert down.done.wait(5) and down.accepted
+            vehicle.target_height_m = 0.3   # the vehicle sinks below the 0.5 m floor
+            said = _event(bus, 10, kind="warning", source="mapper")
+            assert said is not None and said["msg"] == "down -> stop: floor 0.5 m reached", said
+        finally:
+            bridge.finish()
+            loop.join(10)
+            link.close()
+    assert not loop.is_alive()
 
 
 def test_north_is_0_not_360_in_every_report() -> None:

@@ -13,7 +13,6 @@ from typing import Callable
 
 import pytest
 
-from conftest import SimProcess
 from e2e_support import SPEEDUP, require_parts
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.session.bridge import Bridge, Request
@@ -22,6 +21,7 @@ from gcs_voice.session.flight_log import read_flight
 from gcs_voice.link import VehicleLink
 from gcs_voice.session.listen import start_voice_thread
 from gcs_voice.session.session_log import SessionLog
+from gcs_voice.session.sim_process import BundledSim
 from gcs_voice.settings import load_settings
 
 pytestmark = pytest.mark.slow
@@ -46,7 +46,7 @@ def test_link_loss_and_voice_crash(tmp_path: Path) -> None:
     bus.subscribe(log)
     tlog = tmp_path / "s.tlog"
     marks: dict[str, float] = {}
-    with SimProcess("ardupilot", "--speedup", f"{SPEEDUP:g}") as sim:
+    with BundledSim(speedup=SPEEDUP, room="open_field") as sim:
         link = VehicleLink(sim.connection, settings, tlog_path=tlog)
         link.open()
         try:

@@ -11,8 +11,6 @@ disarms before the session ends.
 from __future__ import annotations
 
 import math
-import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -24,9 +22,8 @@ from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link import VehicleLink
 from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.session.events import EventBus
-from link_peer import free_udp_port
+from gcs_voice.session.sim_process import BundledSim, free_udp_port
 
-REPO = Path(__file__).resolve().parent.parent
 #: ArduCopter has a position 41.1 * 0.2 = 8.2 s after power-on; PX4 passes its checks after 3.9 s at real
 #: speed (x0.2, 0.8 s, was over before a loaded machine's bridge heard the vehicle)
 BOOT_SCALE = {"ardupilot": 0.2, "px4": 1.0}
@@ -34,11 +31,10 @@ pytestmark = pytest.mark.slow
 ARM_MODE = {"ardupilot": 4, "px4": 50593792}   # GUIDED; PX4 Hold (AUTO.LOITER)
 
 
-def _start_sim(autopilot: str, port: int) -> subprocess.Popen:
-    return subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge.cli", "--out", f"udp:127.0.0.1:{port}", "--autopilot", autopilot,
-         "--room", "open_field", "--duration", "150", "--cold-start", "--boot-scale", str(BOOT_SCALE[autopilot])],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+def _start_sim(autopilot: str, port: int) -> BundledSim:
+    """gcs-sim with the autopilot's cold start, sending to ``port``; returns once it printed its ready line."""
+    cold = ["--duration", "150", "--cold-start", "--boot-scale", str(BOOT_SCALE[autopilot])]
+    return BundledSim(autopilot, room="open_field", port=port, extra_args=cold).start()
 
 
 def _arms_and_modes(tlog: Path) -> list[tuple[float, int | None]]:
@@ -66,7 +62,6 @@ def test_cold_start_flight(autopilot: str, bridge_first: bool, tmp_path: Path) -
             sim = _start_sim(autopilot, port)
         else:
             sim = _start_sim(autopilot, port)
-            assert "ready" in sim.stdout.readline()
             link.open()
         link.connect(timeout_s=30)
         mapper = ActionMapper(link.settings)
@@ -112,9 +107,8 @@ def test_cold_start_flight(autopilot: str, bridge_first: bool, tmp_path: Path) -
         assert link.state.armed is False and link.state.landed_state == "ON_GROUND"
     finally:
         link.close()
-        if sim is not None and sim.poll() is None:
-            sim.terminate()
-            sim.wait(timeout=10)
+        if sim is not None:
+            sim.stop()
     said = [e.msg for e in bus.history]
     assert any(m.startswith("landed and disarmed") for m in said), said[-10:]
     waited = [m for m in said if m.startswith("waiting for: ")]

@@ -18,7 +18,7 @@ from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link import VehicleLink
 from gcs_voice.link.state import VehicleState
 from gcs_voice.settings import load_settings
-from conftest import SimProcess
+from gcs_voice.session.sim_process import BundledSim
 
 pytestmark = pytest.mark.slow
 
@@ -51,7 +51,7 @@ def _heading_error_deg(heading_deg: float, target_deg: float) -> float:
 def test_fly_the_nine_actions_in_the_simulator(autopilot: str, tmp_path: Path) -> None:
     settings = load_settings()
     mapper = ActionMapper(settings)
-    with SimProcess(autopilot, "--duration", "300") as sim, \
+    with BundledSim(autopilot, room="open_field", extra_args=["--duration", "300"]) as sim, \
             VehicleLink(sim.connection, settings, tlog_path=tmp_path / "flight.tlog") as link:
         state = link.connect(timeout_s=20)
         assert state.autopilot == ("PX4" if autopilot == "px4" else "ArduPilot")
@@ -141,7 +141,7 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
     settings = load_settings()
     mapper = ActionMapper(settings)
     tlog = tmp_path / "loss.tlog"
-    with SimProcess("ardupilot", "--duration", "300") as sim, \
+    with BundledSim(room="open_field", extra_args=["--duration", "300"]) as sim, \
             VehicleLink(sim.connection, settings, tlog_path=tlog) as link:
         link.connect(timeout_s=20)
         assert link.takeoff(1.5, source=mapper.setpoint).ok
@@ -175,7 +175,7 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
 
 def test_tcp_client_to_the_simulator(tmp_path: Path) -> None:
     """``--connect tcp:HOST:PORT`` (like SITL's 5760): state and telemetry arrive, commands are answered."""
-    with SimProcess("ardupilot", "--tcp", "127.0.0.1:0", udp=False) as sim:
+    with BundledSim(room="open_field", tcp=True, udp=False) as sim:
         with VehicleLink(f"tcp:127.0.0.1:{sim.tcp_port}") as link:
             state = link.connect(timeout_s=10)
             assert state.autopilot == "ArduPilot"

@@ -9,10 +9,10 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import SimProcess
-
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
+
+from gcs_voice.session.sim_process import BundledSim
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -47,8 +47,7 @@ def test_udp_out_and_two_tcp_clients_then_sigterm_closes_the_tlog(tmp_path: Path
     gcs_udp.bind(("127.0.0.1", 0))
     gcs_udp.settimeout(5.0)
     tlog = tmp_path / "flight.tlog"
-    sim = SimProcess("ardupilot", "--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}", "--tcp", "127.0.0.1:0",
-                     "--tlog", str(tlog), udp=False)
+    sim = BundledSim(room="open_field", port=gcs_udp.getsockname()[1], tcp=True, sim_tlog=tlog)
     clients = []
     try:
         sim.start()
@@ -84,7 +83,7 @@ def test_udp_out_and_two_tcp_clients_then_sigterm_closes_the_tlog(tmp_path: Path
             conn.close()
         out = sim.stop()     # SIGTERM
         gcs_udp.close()
-    assert sim.proc.returncode == 0, sim.stderr
+    assert sim.process.returncode == 0, sim.stderr
     summary = out.strip().splitlines()[-1]
     assert summary.startswith("gcs-sim: stopped after") and "records" in summary
     dump = subprocess.run(["mavlogdump.py", "--types", "COMMAND_LONG,COMMAND_ACK,HEARTBEAT", str(tlog)],

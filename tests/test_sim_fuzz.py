@@ -12,7 +12,7 @@ import socket
 import time
 
 import pytest
-from conftest import SimProcess
+from gcs_voice.session.sim_process import BundledSim
 from tools.fuzz_sim import Station, check_serving, fuzz, learn_sim_address, rss_kb
 
 #: Resident memory may move by allocator noise, never by a leak of every message (4000+ are sent).
@@ -22,12 +22,13 @@ RSS_GROWTH_LIMIT_KB = 8 * 1024
 @pytest.mark.slow
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_fuzz_on_udp_and_tcp_then_it_still_serves_and_flies(autopilot: str) -> None:
-    with SimProcess(autopilot, "--tcp", "127.0.0.1:0") as sim:
+    started_s = time.monotonic()
+    with BundledSim(autopilot, room="open_field", tcp=True) as sim:
         udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
-        udp.bind(("127.0.0.1", sim.udp_port))
+        udp.bind(("127.0.0.1", sim.port))
         try:
             sim_addr = learn_sim_address(udp)
-            rss_before = rss_kb(sim.proc.pid)
+            rss_before = rss_kb(sim.process.pid)
             counts = fuzz(udp, sim_addr, sim.tcp_port, 4.0, random.Random(20261202), max_rate_hz=1000.0)
             assert counts.udp_datagrams > 500 and counts.tcp_writes > 500 and counts.tcp_resets > 0, counts
             assert sim.alive(), sim.stderr
@@ -36,10 +37,10 @@ def test_fuzz_on_udp_and_tcp_then_it_still_serves_and_flies(autopilot: str) -> N
                 clock = station.wait("GLOBAL_POSITION_INT", 10.0)
             finally:
                 station.close()
-            wall_s = time.monotonic() - sim.started_monotonic_s
+            wall_s = time.monotonic() - started_s
             assert clock is not None and clock.time_boot_ms / 1000.0 <= wall_s + 1.0, \
                 "a flood must not run the simulated clock ahead of the wall clock"
-            rss_after = rss_kb(sim.proc.pid)
+            rss_after = rss_kb(sim.process.pid)
             health = check_serving(sim.tcp_port, autopilot, udp)
         finally:
             udp.close()

@@ -12,7 +12,9 @@ import time
 from pathlib import Path
 
 import pytest
-from conftest import IN_CI, SimProcess
+from conftest import IN_CI
+
+from gcs_voice.session.sim_process import BundledSim
 
 
 async def _mavsdk_flight(port: int) -> dict:
@@ -53,8 +55,8 @@ async def _mavsdk_flight(port: int) -> dict:
 @pytest.mark.slow
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_mavsdk_connects_passes_health_arms_takes_off_and_lands(autopilot: str) -> None:
-    with SimProcess(autopilot) as sim:
-        seen = asyncio.run(asyncio.wait_for(_mavsdk_flight(sim.udp_port), 60))
+    with BundledSim(autopilot, room="open_field") as sim:
+        seen = asyncio.run(asyncio.wait_for(_mavsdk_flight(sim.port), 60))
     health = seen["health"]
     assert health.is_global_position_ok and health.is_home_position_ok and health.is_armable
     assert health.is_local_position_ok and health.is_gyrometer_calibration_ok
@@ -99,7 +101,7 @@ def test_mavproxy_downloads_params_arms_takes_off_and_lands(tmp_path: Path) -> N
         if IN_CI:
             pytest.fail("mavproxy.py is missing in CI (it is in the [test] extra)")
         pytest.skip("mavproxy.py not installed")
-    sim = SimProcess("ardupilot", "--tcp", "127.0.0.1:0", "--speedup", "2", udp=False).start()
+    sim = BundledSim(speedup=2, room="open_field", tcp=True, udp=False).start()
     mavproxy = subprocess.Popen(["mavproxy.py", "--master", f"tcp:127.0.0.1:{sim.tcp_port}", "--nowait"], cwd=tmp_path,
                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     console = _Console(mavproxy)

@@ -9,8 +9,6 @@ from __future__ import annotations
 
 import hashlib
 import os
-import re
-import signal
 import socket
 import subprocess
 import sys
@@ -23,6 +21,7 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import ardupilotmega as M  # noqa: E402
 
+from gcs_voice.session.sim_process import BundledSim  # noqa: E402
 from sim_bridge.signing import SimSigning, SigningKeyError, key_from_flag, passphrase_key, timestamp_now  # noqa: E402
 
 REPO = Path(__file__).resolve().parent.parent
@@ -31,19 +30,13 @@ KEY = hashlib.sha256(PASSPHRASE.encode()).digest()
 OTHER_KEY = hashlib.sha256(b"not the key").digest()
 
 
-class SimProcess:
-    """``gcs-sim --tcp 127.0.0.1:0 ...`` in real time; ``stop()`` returns its exit line."""
+class SignedSim:
+    """gcs-sim on TCP only, in real time, and its ground stations; ``stop()`` returns its exit line."""
 
-    def __init__(self, *args: str) -> None:
-        self.proc = subprocess.Popen(
-            [sys.executable, "-m", "sim_bridge", "--tcp", "127.0.0.1:0", "--room", "open_field",
-             "--duration", "300", *args], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-        self.ready = self.proc.stdout.readline()
-        match = re.search(r"tcp 127\.0\.0\.1:(\d+)", self.ready)
-        if match is None:
-            self.proc.kill()
-            raise AssertionError(f"no ready line: {self.ready!r} {self.proc.stderr.read()}")
-        self.port = int(match.group(1))
+    def __init__(self, autopilot: str, *args: str) -> None:
+        self.sim = BundledSim(autopilot, room="open_field", tcp=True, udp=False,
+                              extra_args=["--duration", "300", *args]).start()
+        self.port = self.sim.tcp_port
         self.clients: list = []
 
     def client(self, key: bytes | None = None, strict: bool = True):
@@ -59,10 +52,8 @@ class SimProcess:
 
     def stop(self) -> str:
         """SIGTERM, wait for the exit; the clients stay open so what was sent to them can still be read."""
-        if self.proc.poll() is None:
-            self.proc.send_signal(signal.SIGTERM)
-        out, err = self.proc.communicate(timeout=30)
-        assert self.proc.returncode == 0, err
+        out = self.sim.stop()
+        assert self.sim.process.returncode == 0, self.sim.stderr
         return out.strip().splitlines()[-1]
 
     def close_clients(self) -> None:
@@ -101,7 +92,7 @@ def _drain(conn) -> list:
 def test_only_messages_signed_with_the_key_command_the_vehicle(autopilot: str, tmp_path: Path) -> None:
     key_file = tmp_path / "key.txt"
     key_file.write_text(PASSPHRASE + "\n")
-    sim = SimProcess("--autopilot", autopilot, "--signing-key", f"@{key_file}")
+    sim = SignedSim(autopilot, "--signing-key", f"@{key_file}")
     try:
         signed = sim.client(KEY)
         heartbeat = signed.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
@@ -145,7 +136,7 @@ def test_only_messages_signed_with_the_key_command_the_vehicle(autopilot: str, t
 
 @pytest.mark.slow
 def test_setup_signing_sets_rotates_and_clears_the_key() -> None:
-    sim = SimProcess("--autopilot", "ardupilot")
+    sim = SignedSim("ardupilot")
     try:
         gcs = sim.client(None)
         # MAVProxy's 'signing setup PASSPHRASE': SETUP_SIGNING (unsigned: the vehicle has no key yet), then sign
@@ -183,7 +174,7 @@ def test_setup_signing_sets_rotates_and_clears_the_key() -> None:
 @pytest.mark.parametrize("autopilot, text", [("ardupilot", "Won't setup signing when armed"),
                                              ("px4", "MAVLink signing: rejected while armed")])
 def test_no_key_change_while_armed(autopilot: str, text: str) -> None:
-    sim = SimProcess("--autopilot", autopilot, "--signing-key", PASSPHRASE)
+    sim = SignedSim(autopilot, "--signing-key", PASSPHRASE)
     try:
         gcs = sim.client(KEY)
         deadline = time.monotonic() + 30
@@ -212,15 +203,11 @@ def test_allow_refuses_other_hosts_on_tcp_and_udp() -> None:
     gcs_udp.settimeout(10)
     stranger = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     stranger.bind(("127.0.0.2", 0))
-    proc = subprocess.Popen(
-        [sys.executable, "-m", "sim_bridge", "--tcp", "127.0.0.1:0",
-         "--out", f"udp:127.0.0.1:{gcs_udp.getsockname()[1]}",
-         "--allow", "127.0.0.1", "--room", "open_field", "--duration", "300"],
-        cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    sim = BundledSim(room="open_field", port=gcs_udp.getsockname()[1], tcp=True,
+                     extra_args=["--allow", "127.0.0.1", "--duration", "300"]).start()
     parser, acks = M.MAVLink(None), []
     try:
-        port = int(re.search(r"tcp 127\.0\.0\.1:(\d+)", proc.stdout.readline()).group(1))
-        with socket.create_connection(("127.0.0.1", port), timeout=10, source_address=("127.0.0.2", 0)) as tcp:
+        with socket.create_connection(("127.0.0.1", sim.tcp_port), timeout=10, source_address=("127.0.0.2", 0)) as tcp:
             assert tcp.recv(4096) == b"", "a TCP client from a host not allowed is closed at once"
         _data, sim_addr = gcs_udp.recvfrom(65535)
         gcs = M.MAVLink(None, srcSystem=255, srcComponent=190)
@@ -235,9 +222,8 @@ def test_allow_refuses_other_hosts_on_tcp_and_udp() -> None:
             acks = [m for m in parser.parse_buffer(gcs_udp.recv(65535)) or [] if m.get_type() == "COMMAND_ACK"]
         assert acks, "the allowed host is answered"
     finally:
-        proc.send_signal(signal.SIGTERM)
-        out, err = proc.communicate(timeout=30)
-    assert proc.returncode == 0, err
+        out = sim.stop()
+    assert sim.process.returncode == 0, sim.stderr
     line = out.strip().splitlines()[-1]
     assert "--allow 127.0.0.1/32 refused 4" in line, line
     gcs_udp.settimeout(0.2)

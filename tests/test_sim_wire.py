@@ -3,14 +3,15 @@
 from __future__ import annotations
 
 import pytest
-from conftest import SimProcess
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
+
+from gcs_voice.session.sim_process import BundledSim
 
 AUTOPILOTS = ["ardupilot", "px4"]
 
 
-def _tcp(sim: SimProcess) -> mavutil.mavfile:
+def _tcp(sim: BundledSim) -> mavutil.mavfile:
     return mavutil.mavlink_connection(f"tcp:127.0.0.1:{sim.tcp_port}", source_system=255, source_component=190,
                                       retries=0)
 
@@ -19,7 +20,7 @@ def _tcp(sim: SimProcess) -> mavutil.mavfile:
 @pytest.mark.parametrize("autopilot", AUTOPILOTS)
 def test_forty_short_tcp_sessions_leave_the_sim_serving(autopilot: str) -> None:
     """Issue 12: a client closing during a tick left fd -1 in the select list and killed the sim by the 8th."""
-    with SimProcess(autopilot, "--tcp", "127.0.0.1:0", "--speedup", "5", udp=False) as sim:
+    with BundledSim(autopilot, speedup=5, room="open_field", tcp=True, udp=False) as sim:
         for session in range(40):
             conn = _tcp(sim)
             hb = conn.recv_match(type="HEARTBEAT", blocking=True, timeout=10)
@@ -64,7 +65,7 @@ def test_no_client_can_silence_the_heartbeat_and_intervals_are_per_link(autopilo
 
     Other intervals change only the asking link, as both firmwares keep them per MAVLink channel.
     """
-    with SimProcess(autopilot, "--tcp", "127.0.0.1:0", "--speedup", "4", udp=False) as sim:
+    with BundledSim(autopilot, speedup=4, room="open_field", tcp=True, udp=False) as sim:
         a, b = _tcp(sim), _tcp(sim)
         try:
             for interval_us in (-1, 1e30, 60e6):
@@ -86,7 +87,7 @@ def test_no_client_can_silence_the_heartbeat_and_intervals_are_per_link(autopilo
 @pytest.mark.parametrize("autopilot, longest_us", [("ardupilot", 60_000_000), ("px4", 2**31 - 1)])
 def test_very_long_intervals_are_clamped_and_reported(autopilot: str, longest_us: int) -> None:
     """1e30 or 2.2e9 µs: ArduPilot caps at 60 s; PX4 keeps it, reported within MESSAGE_INTERVAL's int32."""
-    with SimProcess(autopilot, "--tcp", "127.0.0.1:0", udp=False) as sim:
+    with BundledSim(autopilot, room="open_field", tcp=True, udp=False) as sim:
         conn = _tcp(sim)
         try:
             for interval in (1e30, 2.2e9, 5e5):

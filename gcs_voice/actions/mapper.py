@@ -21,6 +21,7 @@ from __future__ import annotations
 import math
 import threading
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
@@ -95,6 +96,9 @@ class ActionMapper:
         self.hold_down_m: float | None = None
         #: set by halt(): a plain flag, because a signal handler sets it (no lock may be taken there)
         self._halted = False
+        #: called when ``events`` gets an entry or ``limit_reason`` changes, in the thread that asked for the
+        #: setpoint (the link's stream): the session loop waits for this instead of polling. It must not block.
+        self.on_change: Callable[[], object] | None = None
 
     def halt(self) -> None:
         """From now on every setpoint is a stop and no motion is taken (Ctrl-C: safe in a signal handler).
@@ -155,11 +159,17 @@ class ActionMapper:
             self.hold_down_m = state.down_m if _finite(state.down_m) else None
 
     def _switch_to_stop(self, reason: str, state: VehicleState | None = None) -> None:
-        if self.action != "stop":
-            self.events.append(f"{self.action} -> stop: {reason}")
-            if state is not None:
-                self._update_holds(self.action, "stop", state)
+        if self.action == "stop":
+            return
+        self.events.append(f"{self.action} -> stop: {reason}")
+        if state is not None:
+            self._update_holds(self.action, "stop", state)
         self.action = "stop"
+        self._tell_watcher()
+
+    def _tell_watcher(self) -> None:
+        if self.on_change is not None:
+            self.on_change()
 
     def setpoint(self, state: VehicleState) -> Setpoint:
         """The setpoint for now: the action's velocity, limited by floor, ceiling and fence."""
@@ -194,7 +204,10 @@ class ActionMapper:
             if reason:
                 forward = right = 0.0
                 reasons.append(reason)
-        self.limit_reason = "; ".join(reasons)
+        limits = "; ".join(reasons)
+        if limits != self.limit_reason:
+            self.limit_reason = limits
+            self._tell_watcher()
         if self.action not in HORIZONTAL_MOTIONS and self.hold_point is None:
             self.hold_point = _point(state)   # first setpoint after take-off, or position heard at last
         if self.action not in VERTICAL_MOTIONS and self.hold_down_m is None and _finite(state.down_m):

@@ -71,6 +71,10 @@ class LinkChannel:
         self.read_errors = 0
         #: called (in a thread of its own) when a vehicle lost for ``link_lost_s`` is heard again
         self.on_link_back: Callable[[], object] | None = None
+        #: called in the link's thread when the link is lost or heard (again) and at each vehicle HEARTBEAT
+        #: (mode, armed): a watcher (the session loop) waits for this instead of polling ``state``. It must
+        #: not block.
+        self.on_change: Callable[[], object] | None = None
 
     # ---- lifetime -------------------------------------------------------------------------------
     def open(self) -> Self:
@@ -166,12 +170,16 @@ class LinkChannel:
             self.tlog.write(msg.get_msgbuf())
         with self._changed:
             mode_before, armed_before = self.tracker.state.mode, self.tracker.state.armed
+            heartbeats_before = self.tracker.state.heartbeats
             events = self.tracker.update(msg, time.monotonic())
             mode_after, armed_after = self.tracker.state.mode, self.tracker.state.armed
+            heartbeat = self.tracker.state.heartbeats != heartbeats_before
             for event in events:
                 for collector in self._collectors:
                     collector.take(event)
             self._changed.notify_all()
+        if heartbeat:
+            self._tell_watcher()
         if self._guard is not None:
             self._guard.observe(msg, self.tracker.state.system_id)
         if mode_before is not None and (mode_after, armed_after) != (mode_before, armed_before):
@@ -197,6 +205,12 @@ class LinkChannel:
                 threading.Thread(target=self.on_link_back, name="link-back", daemon=True).start()
         with self._changed:
             self._changed.notify_all()
+        self._tell_watcher()
+
+    def _tell_watcher(self) -> None:
+        watcher = self.on_change
+        if watcher is not None:
+            watcher()
 
     # ---- sending, and the answers ------------------------------------------------------------------
     @property

@@ -2,7 +2,9 @@
 
 Three kinds of thread meet here. The voice side (``gcs_voice.session.listen``) and the keyboard call
 ``Bridge.submit``; the link's own thread streams ``ActionMapper.setpoint`` at 10 Hz; this loop
-(``Bridge.run``) takes one submitted action at a time and watches the link. A setpoint has one route:
+(``Bridge.run``) takes one submitted action at a time and watches the link. It sleeps until something
+wakes it: a request, ``finish()``, a signal, the link (lost, heard, a HEARTBEAT) or the mapper (an
+automatic stop, a new limit); nothing it does is periodic, so it never polls. A setpoint has one route:
 the mapper decides it and the link sends it (``stream_now`` sends a new command's first one at once,
 the stream the rest); the bridge never sends one itself. Rules, in order:
 
@@ -43,7 +45,6 @@ from gcs_voice.session.events import EventBus
 
 __all__ = ["Bridge", "Request", "status_of"]
 
-LOOP_PERIOD_S = 0.05
 #: how long the final stop is kept on the wire before the link closes (several 10 Hz setpoints)
 FINAL_STOP_S = 0.6
 #: below this height above home a vehicle without EXTENDED_SYS_STATE counts as on the ground
@@ -100,7 +101,10 @@ class Bridge:
         self.mapper = mapper
         self.bus = bus
         self.takeoff_m = takeoff_m
-        self._requests: queue.Queue[Request] = queue.Queue()
+        #: requests, and None for "something changed: look again". A SimpleQueue, because the signal handler
+        #: puts into it too (its put is reentrant; a Queue's or an Event's lock could be held by the code the
+        #: handler interrupted)
+        self._inbox: queue.SimpleQueue[Request | None] = queue.SimpleQueue()
         self._finish = threading.Event()
         self._interrupted = False  # set by the signal handler (a plain flag: no lock taken in a handler)
         self._signum = int(signal.SIGINT)
@@ -116,12 +120,17 @@ class Bridge:
 
     # ---- inputs (any thread) ----------------------------------------------------------------------
     def submit(self, request: Request) -> Request:
-        self._requests.put(request)
+        self._inbox.put(request)
         return request
 
     def finish(self, exit_code: int = 0) -> None:
         self.exit_code = self.exit_code or exit_code
         self._finish.set()
+        self._wake()
+
+    def _wake(self) -> None:
+        """Something the loop watches changed: make it look again (safe in a signal handler)."""
+        self._inbox.put(None)
 
     @property
     def busy(self) -> str | None:
@@ -140,20 +149,20 @@ class Bridge:
         """Serve requests and watch the link until ``finish()``; always ends with ``shutdown()``.
 
         Ctrl-C (and SIGTERM, SIGHUP) halts the mapper (the setpoint source: the next setpoint the 10 Hz
-        stream sends is a stop) and sets a flag that the loop reads; nothing else happens in the handler:
-        a KeyboardInterrupt raised at an arbitrary bytecode could leave a lock (the link's, a queue's)
-        held and hang the final stop.
+        stream sends is a stop), sets a flag that the loop reads and wakes the loop; nothing else happens
+        in the handler: a KeyboardInterrupt raised at an arbitrary bytecode could leave a lock (the link's,
+        a queue's) held and hang the final stop.
         """
         previous: dict[int, Any] = {}
         if threading.current_thread() is threading.main_thread():
             for signum in STOP_SIGNALS:
                 previous[signum] = signal.signal(signum, self._on_sigint)
+        watchers = self.link.on_change, self.mapper.on_change
+        self.link.on_change = self.mapper.on_change = self._wake
+        self._wake()  # look once at what was so before the loop began (a link already up)
         try:
             while not self._finish.is_set() and not self._interrupted:
-                try:
-                    request = self._requests.get(timeout=LOOP_PERIOD_S)
-                except queue.Empty:
-                    request = None
+                request = self._inbox.get()  # no timeout: whatever the loop watches wakes it (see _wake)
                 self._watch()
                 if request is not None:
                     try:
@@ -163,6 +172,7 @@ class Bridge:
         except KeyboardInterrupt:  # only when no handler could be installed (not the main thread)
             self._interrupted = True
         finally:
+            self.link.on_change, self.mapper.on_change = watchers
             if self._interrupted:
                 self.mapper.halt()  # already done by the handler, unless it came as KeyboardInterrupt
                 name = signal.Signals(self._signum).name
@@ -182,6 +192,7 @@ class Bridge:
             self.halted_t = time.time()
             self._signum = signum
         self._interrupted = True
+        self._wake()
 
     def _watch(self) -> None:
         """Link transitions and the mapper's automatic changes, said once each."""
