@@ -139,11 +139,16 @@ def test_spanish_sentences_with_a_command_word_in_passing_do_nothing(whisper_mod
     (["GOOD", "--lang", "xx"], "no dictionary for language 'xx'"),
     (["GOOD", "--lang", "es", "--engine", "sphinx"], "English only"),
     (["GOOD", "--matcher", "nope"], "unknown matcher"),
+    (["GOOD", "--engine", "sphinx", "--segment", "--vad-settings", "/nonexistent/vad.toml"], "cannot read the segmenter settings"),
+    (["GOOD", "--engine", "sphinx", "--segment", "--vad-settings", "BADTOML"], "segmenter settings"),
 ])
 def test_errors_are_one_line(wavs, tmp_path, args, message):
     empty = tmp_path / "empty.wav"
     subprocess.run(["sox", "-n", "-r", "16000", "-c", "1", "-b", "16", str(empty), "trim", "0", "0"], check=True)
-    args = [str(empty) if a == "EMPTY" else str(wavs["stop"]) if a == "GOOD" else a for a in args]
+    bad_toml = tmp_path / "vad.toml"
+    bad_toml.write_text("min_silence_s = [\n")
+    args = [str(empty) if a == "EMPTY" else str(wavs["stop"]) if a == "GOOD" else str(bad_toml) if a == "BADTOML" else a
+            for a in args]
     proc = recognize(*args)
     assert proc.returncode == 2
     err = proc.stderr.decode().strip()

@@ -157,7 +157,9 @@ def recognize(wav: Path, args_extra: list[str], cache_dir: Path) -> tuple[list[d
     """Run ``gcs-voice recognize --segment --json`` on the stream (cached); rows, command, seconds."""
     cmd = ["gcs-voice", "recognize", "--segment", "--json", *args_extra, str(wav)]
     shown = " ".join(shlex.quote(c) for c in cmd)
-    key = hashlib.sha256(wav.read_bytes() + shown.encode() + source_digest().encode()).hexdigest()[:20]
+    # a settings file named in the command counts by its contents, not its path
+    files = b"".join(Path(a).read_bytes() for a in args_extra if a.endswith(".toml") and Path(a).is_file())
+    key = hashlib.sha256(wav.read_bytes() + shown.encode() + files + source_digest().encode()).hexdigest()[:20]
     cached = cache_dir / f"{key}.json"
     if cached.is_file():
         data = json.loads(cached.read_text(encoding="utf-8"))
@@ -233,6 +235,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     p.add_argument("--engine", default=None, help="passed to gcs-voice recognize (default: what it picks)")
     p.add_argument("--vad", default=None, choices=("silero", "energy"), help="segmenter (default: vad.toml's)")
+    p.add_argument("--vad-settings", default=None, metavar="TOML",
+                   help="a segmenter settings file for gcs-voice recognize --vad-settings (to compare settings)")
+    p.add_argument("--split", default="test", choices=("test", "dev"),
+                   help="speakers to build the streams from: test (the report) or dev (to choose settings on)")
     p.add_argument("--work", default=str(ROOT / "out" / "bench" / "stream"))
     p.add_argument("--out", default=None, help="markdown report (default docs/bench/stream.md; '-' = stdout only)")
     args = p.parse_args(argv)
@@ -246,16 +252,17 @@ def main(argv: list[str] | None = None) -> int:
     conditions: list[tuple[str, float | None]] = [] if args.no_clean else [("none", None)]
     conditions += [(n, s) for n in noises for s in snrs]
     extra = ["--model", args.model] + (["--engine", args.engine] if args.engine else []) + \
-        (["--vad", args.vad] if args.vad else [])
+        (["--vad", args.vad] if args.vad else []) + \
+        (["--vad-settings", str(Path(args.vad_settings).resolve())] if args.vad_settings else [])
     work = Path(args.work)
-    clips = choose(load_recordings(split="test"), args.utterances, np.random.default_rng(args.seed))
+    clips = choose(load_recordings(split=args.split), args.utterances, np.random.default_rng(args.seed))
     lines = []
     shown_cmd = ""
     for noise_name, snr in conditions:
         noise = read_wav(SHARED / "noise" / NOISE_FILES[noise_name]) if snr is not None else None
         x, placed = build_stream(clips, noise, snr, args.seed)
         label = "clean" if snr is None else f"{noise_name}{snr:g}"
-        wav = work / f"stream_{label}_n{args.utterances}_s{args.seed}.wav"
+        wav = work / f"stream_{label}_n{args.utterances}_s{args.seed}{'' if args.split == 'test' else '_' + args.split}.wav"
         write_wav(wav, x)
         write_truth(wav.with_suffix(".tsv"), placed)
         rows, shown_cmd, seconds = recognize(wav, extra, work / "cache")
@@ -272,8 +279,10 @@ def main(argv: list[str] | None = None) -> int:
         "Command: `" + " ".join(["python -m tools.bench_stream",
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
-        f"Each stream: {args.utterances} real utterances from the held-out test part of `../shared/speech` "
-        "(the test split of `python -m tools.real_speech`, speakers no tuning heard; 70 % commands, "
+        f"Each stream: {args.utterances} real utterances from the "
+        + ("held-out test part of `../shared/speech` (the test split of `python -m tools.real_speech`, speakers no "
+           "tuning heard; " if args.split == "test" else "dev part of `../shared/speech` (the split settings are "
+           "chosen on; ") + "70 % commands, "
         "15 % non-command words, 15 % sentences), "
         f"seed {args.seed}, pauses 1.5-6 s, each utterance at {SPEECH_DBFS:g} dBFS over its voiced frames; the real "
         "noise under the whole stream at the stated SNR. The stream WAV is fed as one file to "

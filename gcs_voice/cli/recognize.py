@@ -38,6 +38,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="split each input into utterances at pauses (one line per utterance)")
     parser.add_argument("--vad", choices=("silero", "energy"), default=None,
                         help="with --segment: the segmenter (default: gcs_voice/audio/vad.toml's, silero)")
+    parser.add_argument("--vad-settings", default=None, metavar="TOML",
+                        help="with --segment: a segmenter settings file of your own, in the form of "
+                             "gcs_voice/audio/vad.toml (for a room that needs other pauses or thresholds)")
     parser.add_argument("--json", action="store_true", help="one JSON object per line")
 
 
@@ -88,6 +91,22 @@ def _format_line(row: dict) -> str:
             f"score {row['score']:.2f} lang {row['lang'] or '-'} {row['ms']:.0f} ms")
 
 
+def _vad_settings(args: argparse.Namespace):
+    """The segmenter's settings: vad.toml, or --vad-settings; a missing or malformed file is one line."""
+    import tomllib
+
+    from gcs_voice.audio.vad import VAD_SETTINGS_PATH, load_vad_settings
+    from gcs_voice.errors import AudioError
+
+    path = Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH
+    try:
+        return load_vad_settings(path, method=args.vad)
+    except OSError as exc:
+        raise AudioError(f"cannot read the segmenter settings {path}: {exc.strerror or exc}") from None
+    except (tomllib.TOMLDecodeError, TypeError, ValueError) as exc:
+        raise AudioError(f"the segmenter settings {path} are not valid: {exc}") from None
+
+
 def run(args: argparse.Namespace) -> int:
     from gcs_voice.asr.registry import load_recognizer
     from gcs_voice.audio.sources import pcm_to_chunks
@@ -95,7 +114,7 @@ def run(args: argparse.Namespace) -> int:
     from gcs_voice.audio.vad import load_vad_settings, segment_utterances
 
     inputs = _read_inputs(args.files)
-    vad = load_vad_settings(method=args.vad) if args.segment else None
+    vad = _vad_settings(args) if args.segment else None
     dictionaries = _dictionaries(args)
     matcher = get_matcher(args.matcher or DEFAULT_MATCHER)
     engine = _engine_for(args)
