@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import math
 import os
-import socket
 import threading
 import time
 from typing import Any
@@ -19,16 +18,12 @@ os.environ.setdefault("MAVLINK20", "1")
 from pymavlink import mavutil  # noqa: E402
 from pymavlink.dialects.v20 import common as mavlink  # noqa: E402
 
+from gcs_voice.session.sim_process import free_udp_port  # noqa: E402
+
 PX4_OFFBOARD = 393216
 PX4_HOLD = 50593792
 PX4_LAND = 100925440
 HOME_AMSL_M = 488.0
-
-
-def free_udp_port() -> int:
-    with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as sock:
-        sock.bind(("127.0.0.1", 0))
-        return sock.getsockname()[1]
 
 
 class ScriptedVehicle:

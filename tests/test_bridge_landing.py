@@ -78,3 +78,26 @@ def test_landing_not_seen_within_the_limit_is_said(tmp_path: Path) -> None:
     warnings = [e.msg for e in bus.history if e.kind == "warning"]
     assert any(m.startswith("landing not confirmed (not seen within 1.5 s): mode LAND, armed") for m in warnings), \
         warnings
+
+
+def test_a_script_waits_on_the_bridge_for_an_operation_and_for_the_end(tmp_path: Path) -> None:
+    """What ``run_script`` waits on: ``wait_idle`` is woken when the operation ends (it does not run out its
+    time), ``wait_finished`` returns True at ``finish()`` from another thread."""
+    limit_s = 30.0
+    with ScriptedVehicle("ardupilot") as vehicle:
+        link, bus, bridge, runner = _session(vehicle, tmp_path)
+        try:
+            assert bridge.wait_idle(limit_s) and bridge.busy is None
+            land = bridge.submit(Request("land", "script"))
+            assert land.done.wait(5)
+            started = time.monotonic()
+            assert bridge.wait_idle(limit_s) and bridge.busy is None, [e.msg for e in bus.history]
+            assert time.monotonic() - started < limit_s / 2, "wait_idle ran out its time: nothing woke it"
+            assert not bridge.wait_finished(0.0)
+            threading.Thread(target=bridge.finish, daemon=True).start()
+            assert bridge.wait_finished(30)
+            assert bridge.wait_idle(0.0)  # finished: nothing left to wait for
+            runner.join(15)
+            assert not runner.is_alive()
+        finally:
+            link.close()

@@ -176,7 +176,8 @@ def test_link_loss_with_the_simulator_paused(tmp_path: Path) -> None:
 def test_tcp_client_to_the_simulator(tmp_path: Path) -> None:
     """``--connect tcp:HOST:PORT`` (like SITL's 5760): state and telemetry arrive, commands are answered."""
     with BundledSim(room="open_field", tcp=True, udp=False) as sim:
-        with VehicleLink(f"tcp:127.0.0.1:{sim.tcp_port}") as link:
+        assert sim.connection == f"tcp:127.0.0.1:{sim.tcp_port}"
+        with VehicleLink(sim.connection) as link:
             state = link.connect(timeout_s=10)
             assert state.autopilot == "ArduPilot"
             assert link.wait_for(lambda s: s.heading_deg is not None and s.height_m is not None, 3.0) is not None

@@ -12,7 +12,7 @@ import pytest
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from gcs_voice.session.sim_process import BundledSim
+from gcs_voice.session.sim_process import BundledSim, SimError
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -39,6 +39,14 @@ def test_bad_flags_give_one_line(args: list[str], words: str) -> None:
     assert out.returncode == 2
     lines = out.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith("gcs-sim: error:") and words in lines[0], out.stderr
+
+
+def test_a_simulator_without_udp_has_no_udpin_connection() -> None:
+    """``udp=False`` gives the TCP string once the port is known (test_link_sim), never ``udpin:...:None``."""
+    for sim in (BundledSim(udp=False), BundledSim(udp=False, tcp=True)):
+        with pytest.raises(SimError, match="udp=False"):
+            sim.connection
+    assert BundledSim(port=14550).connection == "udpin:127.0.0.1:14550"
 
 
 @pytest.mark.slow

@@ -18,8 +18,6 @@ import math
 import platform
 import socket
 import statistics
-import subprocess
-import sys
 import tempfile
 import time
 from collections import Counter
@@ -27,6 +25,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
+from gcs_voice.session.sim_process import BundledSim
 from tools.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
 
 REPO = Path(__file__).resolve().parent.parent
@@ -110,27 +109,28 @@ def bench_rates(rows: list[str], rates: dict) -> None:
     rows.append("")
 
 
-def _sim_process(*args: str) -> subprocess.Popen:
-    return subprocess.Popen([sys.executable, "-m", "sim_bridge", "--room", "open_field", *args], cwd=REPO,
-                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+def _sim(port: int, speedup: float | None = None, *extra: str) -> BundledSim:
+    return BundledSim(room="open_field", port=port, speedup=speedup, extra_args=extra)
 
 
 def bench_pacing(rows: list[str]) -> None:
     rows += ["## Real-time pacing (gcs-sim process, nobody listening on the UDP port)", "",
              "| --speedup | simulated s | wall s (process start to exit) | achieved ratio |", "|---|---|---|---|"]
-    for speedup, duration in (("1", 10.0), ("5", 30.0), ("max", 60.0)):
+    for speedup, duration in ((1.0, 10.0), (5.0, 30.0), (math.inf, 60.0)):
         sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
         sock.bind(("127.0.0.1", 0))
+        sim = _sim(sock.getsockname()[1], speedup, "--duration", str(duration))
         t0 = time.monotonic()
-        proc = _sim_process("--out", f"udp:127.0.0.1:{sock.getsockname()[1]}", "--speedup", speedup,
-                            "--duration", str(duration))
-        ready = proc.stdout.readline()
-        t_ready = time.monotonic()
-        proc.communicate(timeout=600)
-        wall = time.monotonic() - t_ready
-        sock.close()
-        rows.append(f"| {speedup} | {duration:.0f} | {wall:.2f} (+{t_ready - t0:.2f} start-up) | {duration / wall:.2f} |")
-        assert "ready" in ready
+        try:
+            sim.start()
+            t_ready = time.monotonic()
+            sim.process.wait(timeout=600)
+            wall = time.monotonic() - t_ready
+        finally:
+            sim.stop()
+            sock.close()
+        label = "max" if math.isinf(speedup) else f"{speedup:g}"
+        rows.append(f"| {label} | {duration:.0f} | {wall:.2f} (+{t_ready - t0:.2f} start-up) | {duration / wall:.2f} |")
     rows.append("")
 
 
@@ -138,13 +138,12 @@ def bench_latency(rows: list[str]) -> None:
     sock = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     sock.bind(("127.0.0.1", 0))
     sock.settimeout(2.0)
-    proc = _sim_process("--out", f"udp:127.0.0.1:{sock.getsockname()[1]}")
-    proc.stdout.readline()
+    sim = _sim(sock.getsockname()[1]).start()
     mav = M.MAVLink(None, srcSystem=255, srcComponent=190)
     parser = M.MAVLink(None)
-    _data, sim_addr = sock.recvfrom(65535)
     samples = []
     try:
+        _data, sim_addr = sock.recvfrom(65535)
         for _ in range(100):
             t0 = time.monotonic()
             sock.sendto(mav.command_long_encode(1, 1, M.MAV_CMD_REQUEST_MESSAGE, 0, 148, 0, 0, 0, 0, 0, 0).pack(mav),
@@ -157,8 +156,7 @@ def bench_latency(rows: list[str]) -> None:
             samples.append((time.monotonic() - t0) * 1000)
             time.sleep(0.02)
     finally:
-        proc.terminate()
-        proc.communicate(timeout=20)
+        sim.stop()
         sock.close()
     samples.sort()
     rows += ["## Command latency (real time, UDP loopback)", "",

@@ -21,13 +21,14 @@ import re
 import select
 import socket
 import struct
-import subprocess
 import sys
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as M
+
+from gcs_voice.session.sim_process import BundledSim
 
 __all__ = ["hostile_message", "fuzz_chunk", "fuzz", "FuzzCounts", "Health", "Station", "check_serving", "rss_kb",
            "learn_sim_address"]
@@ -384,46 +385,34 @@ def _px4_takeoff(station: Station, health: Health) -> None:
 
 
 # ----------------------------------------------------------------------------- the benchmark
-def _start_sim(autopilot: str, udp_port: int) -> tuple[subprocess.Popen, int]:
-    proc = subprocess.Popen([sys.executable, "-m", "sim_bridge", "--autopilot", autopilot, "--room", "open_field",
-                             "--out", f"udp:127.0.0.1:{udp_port}", "--tcp", "127.0.0.1:0"],
-                            cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    ready = proc.stdout.readline()
-    found = re.search(r"tcp 127\.0\.0\.1:(\d+)", ready)
-    if not found:
-        proc.kill()
-        raise RuntimeError(f"gcs-sim did not start: {ready}{proc.stderr.read()}")
-    return proc, int(found.group(1))
-
-
 def run(autopilot: str, seconds: float, seed: int, rounds: int) -> dict:
     """Fuzz one personality for ``seconds`` in ``rounds`` slices; memory sampled after each slice."""
     udp = socket.socket(socket.AF_INET, socket.SOCK_DGRAM)
     udp.bind(("127.0.0.1", 0))
-    proc, tcp_port = _start_sim(autopilot, udp.getsockname()[1])
+    sim = BundledSim(autopilot, room="open_field", port=udp.getsockname()[1], tcp=True)
     rng = random.Random(seed)
     totals = FuzzCounts()
-    wall0 = time.monotonic()
     try:
+        sim.start()
+        wall0 = time.monotonic()  # the clock ratio counts from the ready line
         sim_addr = learn_sim_address(udp)
         time.sleep(1.0)
-        rss = [rss_kb(proc.pid)]
+        rss = [rss_kb(sim.process.pid)]
         for _ in range(rounds):
-            counts = fuzz(udp, sim_addr, tcp_port, seconds / rounds, rng)
+            counts = fuzz(udp, sim_addr, sim.tcp_port, seconds / rounds, rng)
             for name in vars(totals):
                 setattr(totals, name, getattr(totals, name) + getattr(counts, name))
-            rss.append(rss_kb(proc.pid))
-        alive = proc.poll() is None
-        health = check_serving(tcp_port, autopilot, udp) if alive else Health(notes=["process died"])
+            rss.append(rss_kb(sim.process.pid))
+        alive = sim.alive()
+        health = check_serving(sim.tcp_port, autopilot, udp) if alive else Health(notes=["process died"])
     finally:
-        proc.terminate()
-        out, err = proc.communicate(timeout=20)
+        out = sim.stop()
         udp.close()
     wall_s = time.monotonic() - wall0
     simulated = re.search(r"stopped after ([\d.]+) s simulated", out)
     return {"clock_ratio": float(simulated.group(1)) / wall_s if simulated else math.nan,"autopilot": autopilot, "seconds": seconds, "seed": seed, "counts": totals, "rss_kb": rss,
             "alive": alive, "health": health, "exit": out.strip().splitlines()[-1] if out.strip() else "",
-            "stderr": err.strip()}
+            "stderr": sim.stderr.strip()}
 
 
 def _report(results: list[dict], command: str) -> str:

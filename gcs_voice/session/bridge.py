@@ -106,6 +106,8 @@ class Bridge:
         #: handler interrupted)
         self._inbox: queue.SimpleQueue[Request | None] = queue.SimpleQueue()
         self._finish = threading.Event()
+        #: notified when a flight operation ends and at finish(): a script waits on it (no signal handler takes it)
+        self._changed = threading.Condition()
         self._interrupted = False  # set by the signal handler (a plain flag: no lock taken in a handler)
         self._signum = int(signal.SIGINT)
         self.halted_t: float | None = None  # UNIX time the SIGINT handler stopped the setpoint source
@@ -126,6 +128,8 @@ class Bridge:
     def finish(self, exit_code: int = 0) -> None:
         self.exit_code = self.exit_code or exit_code
         self._finish.set()
+        with self._changed:
+            self._changed.notify_all()
         self._wake()
 
     def _wake(self) -> None:
@@ -140,6 +144,17 @@ class Bridge:
     @property
     def finished(self) -> bool:
         return self._finish.is_set()
+
+    def wait_finished(self, timeout_s: float) -> bool:
+        """Sleep up to ``timeout_s`` unless the session ends first (then True): a script's pause ends with it."""
+        return self._finish.wait(timeout_s)
+
+    def wait_idle(self, timeout_s: float) -> bool:
+        """Wait until no flight operation runs or the session ended; False if one still runs after ``timeout_s``.
+
+        A script holds here after a take-off or a landing, so that its next pause counts from the vehicle up."""
+        with self._changed:
+            return self._changed.wait_for(lambda: not self._busy or self._finish.is_set(), timeout_s)
 
     def status(self) -> dict[str, Any]:
         return status_of(self.link.state, self._busy or self.mapper.action)
@@ -308,7 +323,9 @@ class Bridge:
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
         finally:
-            self._busy = None
+            with self._changed:
+                self._busy = None
+                self._changed.notify_all()
 
     def _operation(self, action: str) -> OperationResult:
         """Run one flight operation on the link (blocking); returns its OperationResult."""

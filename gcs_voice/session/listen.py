@@ -44,6 +44,8 @@ BYTES_PER_S = 32_000
 LATE_S = 2.0
 #: how long the voice side waits for the bridge to send a spotted stop before it goes on
 STOP_WAIT_S = 1.0
+#: how long a script waits for its take-off or landing to end before it goes on
+OPERATION_WAIT_S = 60.0
 
 
 class StopPath:
@@ -214,7 +216,7 @@ def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptSt
         bridge.bus.emit("error", f"the vehicle did not become ready within {ready_timeout_s:g} s; ending")
         bridge.finish(1)
         return
-    if _sleep_unless_finished(bridge, wait_before_s):
+    if bridge.wait_finished(wait_before_s):
         return
     pcms = [(step, read_utterance(step.path)) for step in steps]  # read all first: bad files fail early
     for step, pcm in pcms:
@@ -227,26 +229,11 @@ def run_script(pipeline: VoicePipeline, bridge: Bridge, steps: Sequence[ScriptSt
             request = bridge.submit(Request(step.fallback_action, "script"))
             request.done.wait(10.0)
         if request is not None and request.action in ("take_off", "land"):
-            _wait_operation(bridge)  # then hold: after_s counts from the vehicle being up (or landing)
-        if _sleep_unless_finished(bridge, step.after_s):
+            bridge.wait_idle(OPERATION_WAIT_S)  # then hold: after_s counts from the vehicle being up (or landing)
+        if bridge.wait_finished(step.after_s):
             return
     bridge.bus.emit("session", "script done: holding and ending", phase="script-done")
     bridge.finish(0)
-
-
-def _wait_operation(bridge: Bridge, timeout_s: float = 60.0) -> None:
-    deadline = time.monotonic() + timeout_s
-    while bridge.busy and not bridge.finished and time.monotonic() < deadline:
-        time.sleep(0.05)
-
-
-def _sleep_unless_finished(bridge: Bridge, seconds: float) -> bool:
-    deadline = time.monotonic() + seconds
-    while time.monotonic() < deadline:
-        if bridge.finished:
-            return True
-        time.sleep(min(0.05, max(0.0, deadline - time.monotonic())))
-    return bridge.finished
 
 
 class TentativeUtterances:

@@ -48,8 +48,9 @@ class BundledSim:
     The simulator sends to ``udp:127.0.0.1:PORT``; the ground station listens there
     (``sim.connection`` is the matching ``udpin:`` string). ``speedup`` infinity is ``--speedup max``.
     ``tcp=True`` also serves TCP on a free port (``sim.tcp_port``, read from the ready line); ``udp=False``
-    sends to no UDP port (``sim.port`` is None). ``start()`` returns once the simulator printed its ready
-    line; its stdout and stderr are kept (``ready``, ``stop()``'s return, ``stderr``) and copied to ``log_path``.
+    sends to no UDP port (``sim.port`` is None; ``sim.connection`` is then ``tcp:127.0.0.1:TCP_PORT``).
+    ``start()`` returns once the simulator printed its ready line; its stdout and stderr are kept (``ready``,
+    ``stop()``'s return, ``stderr``) and copied to ``log_path``.
     """
 
     def __init__(self, autopilot: str = "ardupilot", speedup: float | None = None, room: str | None = None,
@@ -77,7 +78,13 @@ class BundledSim:
 
     @property
     def connection(self) -> str:
-        return f"udpin:127.0.0.1:{self.port}"
+        """What a ground station connects with: ``udpin:`` on the UDP out, else ``tcp:`` to the TCP port."""
+        if self.port is not None:
+            return f"udpin:127.0.0.1:{self.port}"
+        if self.tcp_port is not None:
+            return f"tcp:127.0.0.1:{self.tcp_port}"
+        raise SimError("no connection to the bundled simulator: udp=False and "
+                       + ("its TCP port is known once start() returned" if self.tcp else "tcp=False"))
 
     @property
     def stderr(self) -> str:
