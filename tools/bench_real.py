@@ -85,7 +85,7 @@ def load_cache(engine: str) -> dict[str, dict]:
 
 
 def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Recognition, float]:
-    """Stream 100 ms chunks as a microphone would; the time counted is from the end of the audio to the result."""
+    """Stream 100 ms chunks as a file source does; the time counted is from the end of the audio to the result."""
     pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     chunk = int(CHUNK_S * 16_000) * 2
     stream = recognizer.start_stream(lang)
@@ -97,7 +97,7 @@ def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Reco
 
 
 def recognise(engine: str, model: str | None, conditions: list[str], split: str | None,
-              overrides: dict[str, float] | None = None) -> None:
+              overrides: dict[str, float | str] | None = None) -> None:
     from gcs_voice.asr.registry import load_recognizer
 
     name, mode = ENGINES[engine]
@@ -361,14 +361,14 @@ def timing(engine: str, model: str | None, n: int) -> str:
 
 def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) -> str:
     """Time to a decision on the microphone path: ``n`` clean test-split files, 1.5 s apart, fed in real
-    time (100 ms chunks) through the Silero segmenter and ``listen.run_microphone`` exactly as a live
+    time (in the microphone's blocks, gcs_voice.audio.sources.MICROPHONE_BLOCK_S) through the Silero segmenter and ``listen.run_microphone`` exactly as a live
     session runs them (no flight). Timed from the end of speech (the last window Silero called speech)
     and from the close of the utterance (after the closing silence) to the decision. Returns markdown."""
     import os
     import threading
 
     from gcs_voice.asr.registry import load_recognizer
-    from gcs_voice.audio.sources import pcm_to_chunks
+    from gcs_voice.audio.sources import MICROPHONE_BLOCK_S, pcm_to_chunks
     from gcs_voice.audio.vad import load_vad_settings, segment_utterances
     from gcs_voice.session import listen
     from gcs_voice.session.events import EventBus
@@ -401,8 +401,8 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) 
         t0 = time.time() + 0.05
 
         def realtime():
-            for chunk in pcm_to_chunks(pcm):
-                wait = t0 + chunk.start_s + 0.1 - time.time()  # a chunk exists once its 100 ms were spoken
+            for chunk in pcm_to_chunks(pcm, MICROPHONE_BLOCK_S):  # blocks as the microphone gives them
+                wait = t0 + chunk.start_s + MICROPHONE_BLOCK_S - time.time()  # a block exists once it was spoken
                 if wait > 0:
                     time.sleep(wait)
                 yield chunk
@@ -466,10 +466,12 @@ def main(argv: list[str] | None = None) -> int:
         overrides = {}
         for item in args.set:
             key, _, value = item.partition("=")
+            if not key or not value:
+                parser.error(f"--set {item!r}: expected KEY=VALUE")
             try:
                 overrides[key] = float(value)
             except ValueError:
-                parser.error(f"--set {item!r}: expected KEY=NUMBER")
+                overrides[key] = value  # a word setting, such as score_rank_by=mean
         recognise(args.engine, args.model if args.engine.startswith("whisper") else None,
                   args.conditions.split(","), args.split, overrides)
         return 0

@@ -213,13 +213,19 @@ class WhisperRecognizer:
             self._forms[lang] = phrase_forms(self.tokenizer(lang), self.dictionaries[lang])
         return self._forms[lang]
 
+    def rank_by(self, lang: str) -> str:
+        """How phrases of ``lang`` are ranked: ``score_rank_by``, a word or a table by language ("default" for the rest)."""
+        setting = self.settings.get("score_rank_by", "sum")
+        return str(setting.get(lang, setting.get("default", "sum")) if isinstance(setting, dict) else setting)
+
     def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
         """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""
         s = self.settings
         encoded, frames = self.encode_short(audio)
         candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
         scored = {code: score_utterance(self.model.model, self.tokenizer(code), self.phrase_forms(code), encoded,
-                                        frames, int(s.get("score_max_new_tokens", 6)), int(s.get("score_top_k", 8)))
+                                        frames, int(s.get("score_max_new_tokens", 6)), int(s.get("score_top_k", 8)),
+                                        self.rank_by(code))
                   for code in candidates}
         # --lang auto: the best phrase over the loaded languages picks the language (Whisper's language
         # detection on a short window calls espeak-ng Spanish English).
@@ -228,7 +234,9 @@ class WhisperRecognizer:
         extra = {
             "no_speech_prob": result.no_speech_prob,
             "free_logprob": result.free_logprob if math.isfinite(result.free_logprob) else -99.0,
-            "phrase_score": result.best[1] if result.best else -99.0,
+            # the best phrase per token (what the margin compares) and its rank score (score_rank_by)
+            "phrase_score": (result.best[1] if result.best_mean is None else result.best_mean) if result.best else -99.0,
+            "phrase_rank_score": result.best[1] if result.best else -99.0,
             "margin": max(result.margin, -99.0),
             "class_gap": min(result.class_gap, 99.0),
         }

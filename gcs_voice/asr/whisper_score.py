@@ -11,8 +11,11 @@ window):
 3. those phrases AND the free transcript are teacher-forced in ONE batched decoder call
    (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio.
 
-The evidence for a decision is the **margin**: the best phrase's mean log-probability minus that of
-Whisper's own transcript. It is 0 when Whisper itself heard a dictionary phrase, slightly negative
+Phrases are ranked by their log-probability (``rank_by = "sum"``: the probability Whisper gives the whole
+phrase, period included, the maximum a posteriori choice; ``"mean"`` per token favours long phrases whose
+later tokens are easy once the first is given). The evidence for a decision is the **margin**: the best
+phrase's mean log-probability per token minus that of Whisper's own transcript (means, so a transcript
+longer than a command is not favoured by its length). It is 0 when Whisper itself heard a dictionary phrase, slightly negative
 when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
 memoria" heard perfectly does not become "derecha"). One threshold on it (``min_margin`` in
 ``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.bench_real tune``).
@@ -136,19 +139,22 @@ def first_unit_length(pieces: Sequence[str]) -> int:
 class PhraseScores:
     """One utterance judged against one dictionary.
 
-    ``ranked``: (phrase, mean token log-probability) for the teacher-forced phrases, best first (a
-    phrase appears once, with its best form); ``free_text`` / ``free_logprob``: Whisper's own
+    ``ranked``: (phrase, rank score: its log-probability, summed or per token as ``rank_by`` says) for
+    the teacher-forced phrases, best first (a phrase appears once, with its best form); ``best_mean``:
+    the best phrase's mean token log-probability; ``free_text`` / ``free_logprob``: Whisper's own
     transcript and its teacher-forced mean log-probability (-inf when it wrote nothing);
-    ``margin``: best phrase minus free transcript; ``class_gap``: best phrase minus the best phrase of
-    another class.
+    ``margin``: best phrase minus free transcript, per token; ``class_gap``: best phrase minus the best
+    phrase of another class (or not-command), in rank scores.
     """
 
     ranked: tuple[tuple[Phrase, float], ...]
     free_text: str
     free_logprob: float
     no_speech_prob: float
-    #: the best not-command's score (-inf when none was scored): a rival class of every phrase
+    #: the best not-command's rank score (-inf when none was scored): a rival class of every phrase
     not_command: float = -math.inf
+    #: the best phrase's mean token log-probability (None: its rank score is that mean)
+    best_mean: float | None = None
 
     @property
     def best(self) -> tuple[Phrase, float] | None:
@@ -158,7 +164,7 @@ class PhraseScores:
     def margin(self) -> float:
         if not self.ranked:
             return -math.inf
-        best = self.ranked[0][1]
+        best = self.ranked[0][1] if self.best_mean is None else self.best_mean
         return best - self.free_logprob if math.isfinite(self.free_logprob) else 0.0
 
     @property
@@ -174,11 +180,16 @@ def _mean(logprobs: np.ndarray) -> float:
     return float(np.mean(logprobs)) if logprobs.size else -math.inf
 
 
+#: how a phrase's token log-probabilities make its rank score (``rank_by``)
+RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean": lambda lp: _mean(lp)}
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
-                    max_new_tokens: int = 6, top_k: int = 8) -> PhraseScores:
+                    max_new_tokens: int = 6, top_k: int = 8, rank_by: str = "sum") -> PhraseScores:
     """Judge one encoded utterance against one dictionary (see the module docstring).
 
-    ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded.
+    ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded;
+    ``rank_by`` "sum" or "mean" (see the module docstring).
     Greedy decoding and the fixed batch keep it deterministic: the same audio gives the same scores.
     """
     import ctranslate2
@@ -218,16 +229,20 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     results = model.align(batch, prompt, sequences, [num_frames] * len(sequences))
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
     free_logprob = _mean(logprobs.pop()) if unit else -math.inf
-    best: dict[int, tuple[Phrase, float]] = {}
+    if rank_by not in RANK_BY:
+        raise ValueError(f"score_rank_by must be one of {', '.join(RANK_BY)}, not {rank_by!r}")
+    rank = RANK_BY[rank_by]
+    best: dict[int, tuple[Phrase, float, float]] = {}
     not_command = -math.inf
     for i, lp in zip(chosen, logprobs):
-        phrase, score = forms.phrases[i], _mean(lp)
+        phrase, score = forms.phrases[i], rank(lp)
         if phrase.action == NOT_A_COMMAND:
             not_command = max(not_command, score)
             continue
         key = id(phrase)
         if key not in best or score > best[key][1]:
-            best[key] = (phrase, score)
-    ranked = tuple(sorted(best.values(), key=lambda item: item[1], reverse=True))
+            best[key] = (phrase, score, _mean(lp))
+    ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
+    ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
-                        not_command)
+                        not_command, ordered[0][2] if ordered else None)
