@@ -189,9 +189,7 @@ class WhisperRecognizer:
         audio = audio[: 28 * SAMPLE_RATE]
         window = max(audio.size + int(float(s.get("score_pad_s", 0.3)) * SAMPLE_RATE),
                      int(float(s.get("score_window_s", 0.0)) * SAMPLE_RATE))
-        padded = np.zeros(window, dtype=np.float32)
-        padded[: audio.size] = audio
-        features = self.model.feature_extractor(padded)[:, :-1]
+        features = _log_mel_padded(self.model.feature_extractor, audio.astype(np.float32), window)
         encoded = self.model.encode(features)
         # The decoder's cost grows with every encoder position it attends to, once per scored phrase:
         # keep the utterance and score_crop_s after it (2 mel frames per position), not the silent rest
@@ -245,6 +243,30 @@ class WhisperRecognizer:
         hypotheses = tuple(Hypothesis(phrase.text, confidence=math.exp(min(0.0, score)), score=score)
                            for phrase, score in result.ranked[: int(s.get("score_alternatives", 5))])
         return Recognition(hypotheses, self.name, lang, audio_s, extra, transcript=result.free_text)
+
+
+def _log_mel_padded(extractor, audio: np.ndarray, window: int) -> np.ndarray:
+    """Whisper's log-mel of ``audio`` followed by zeros up to ``window`` samples, computed on the audio only.
+
+    Bit for bit ``extractor(zero-padded window)[:, :-1]``: every frame lying wholly in the zeros comes out
+    of Whisper's normalisation as one constant (log10 of its 1e-10 floor, clamped to 8 below the loudest
+    frame, which silence cannot raise), so the frames after the audio's are copies of the last frame
+    computed, which lies in the zeros too (most of an 8 s window is silence after a one-second command).
+    """
+    hop = extractor.hop_length
+    frames = window // hop  # what extractor(window samples)[:, :-1] gives
+    tail = audio.size + 2 * extractor.n_fft  # the audio and zeros enough that the last frames lie wholly in them
+    if tail >= window:
+        part = np.zeros(window, dtype=np.float32)
+        part[: audio.size] = audio
+        return extractor(part)[:, :-1]
+    part = np.zeros(tail - tail % hop, dtype=np.float32)
+    part[: audio.size] = audio
+    head = extractor(part)[:, :-1]
+    out = np.empty((head.shape[0], frames), dtype=head.dtype)
+    out[:, : head.shape[1]] = head
+    out[:, head.shape[1]:] = head[:, -1:]
+    return out
 
 
 class WhisperStream(BufferedStream):

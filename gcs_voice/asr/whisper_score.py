@@ -176,6 +176,13 @@ class PhraseScores:
         return math.inf if rival == -math.inf else best - rival
 
 
+def _log_softmax(logits: np.ndarray) -> np.ndarray:
+    """Log-probabilities from one step's logits (a vectorised log-sum-exp: ``np.logaddexp.reduce`` is a
+    sequential loop over the 51,865 entries of Whisper's vocabulary)."""
+    top = float(np.max(logits))
+    return logits - (top + math.log(float(np.sum(np.exp(logits - top)))))
+
+
 def _mean(logprobs: np.ndarray) -> float:
     return float(np.mean(logprobs)) if logprobs.size else -math.inf
 
@@ -199,8 +206,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
                           return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
                           suppress_blank=True, suppress_tokens=[-1])[0]
     greedy = list(free.sequences_ids[0])
-    steps = [np.asarray(lg, np.float64).ravel() for lg in free.logits[0]]
-    steps = [v - np.logaddexp.reduce(v) for v in steps]
+    steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0]]
     # What the greedy pass already knows of each form: the log-probs of its tokens along the greedy
     # path up to (and including) the first token where it leaves the path. Their mean ranks the forms;
     # only the best ``top_k`` are teacher-forced (each costs a decoder pass over the encoder output).
