@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
 import pytest
 
 from gcs_voice.asr.registry import load_recognizer
@@ -200,3 +201,18 @@ def test_a_not_command_is_a_rival_class_of_every_phrase() -> None:
     assert rivalled.class_gap == pytest.approx(-0.2)
     only = PhraseScores(((forward, -0.5),), "forward", -0.5, 0.0)
     assert only.class_gap == math.inf
+
+
+@pytest.mark.parametrize("samples,window", [(16000, 128000), (12345, 128000), (127000, 128000), (40000, 44800)])
+def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, window):
+    """Scoring mode computes the log-mel on the utterance and fills in the silent rest of the window: the
+    encoder must see exactly what Whisper's own extractor gives for the zero-padded window."""
+    from faster_whisper.feature_extractor import FeatureExtractor
+
+    from gcs_voice.asr.whisper_engine import _log_mel_padded
+
+    extractor = FeatureExtractor()
+    audio = (np.random.default_rng(samples).standard_normal(samples) * 0.1).astype(np.float32)
+    padded = np.zeros(window, np.float32)
+    padded[:samples] = audio
+    assert np.array_equal(_log_mel_padded(extractor, audio, window), extractor(padded)[:, :-1])
