@@ -223,7 +223,10 @@ def test_a_tentative_utterance_is_the_one_yielded_when_the_silence_runs_out(tmp_
     samples = np.frombuffer(read_wav(say("go up", tmp_path / "go_up.wav")), "<i2")
     loud = np.flatnonzero(np.abs(samples) > 200)
     word = samples[loud[0]:loud[-1] + 1].tobytes()  # without espeak-ng's own leading and trailing silence
-    brief = _silence(0.2)  # longer than post_pad_s, shorter than min_silence_s: the utterance goes on
+    silero = load_vad_settings().silero
+    # longer than post_pad_s, shorter than min_silence_s (less a window of Silero's lag): the utterance goes on
+    brief = _silence((silero.post_pad_s + silero.min_silence_s) / 2)
+    assert silero.post_pad_s + 0.05 < (silero.post_pad_s + silero.min_silence_s) / 2 < silero.min_silence_s - 0.03
     pcm = _silence(0.6) + word + brief + word + _silence(0.8) + word + _silence(0.8)
     order: list[tuple[str, bytes]] = []
     for utt in segment_utterances(pcm_to_chunks(pcm), on_tentative=lambda u: order.append(("tentative", u.pcm))):

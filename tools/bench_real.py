@@ -186,7 +186,7 @@ def pct(n: int, d: int) -> str:
 #: engine -> thresholds.toml table and the candidate values of each key tuned in it (their product is swept)
 TUNED = {"whisper-score": ("evidence.whisper-score", {
     "min_margin": [round(float(x), 2) for x in np.arange(-2.0, 0.01, 0.1)],
-    "min_class_gap": [0.0, 0.2, 0.4, 0.6, 0.8, 1.0],
+    "min_class_gap": [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0],
 })}
 #: conditions whose dev counts constrain the choice (kitchen6 is reported, without a target)
 TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12")
@@ -305,9 +305,10 @@ def report(engines: list[str]) -> str:
                       "Each made with `python -m tools.bench_real recognise --split dev --conditions clean --set KEY=VALUE "
                       "--tag TAG`: `w8` = `--set score_crop_s=0` (the decoder attends to the whole 8 s window), `w30` = "
                       "`--set score_window_s=30 --set score_crop_s=0` (Whisper's own 30 s window), `w8cN` = "
-                      "`--set score_crop_s=N` (the decoder attends to the utterance and N s after it; shipped: 2). "
-                      "The variants were recognised with the dictionary of their day (without `not_commands`); "
-                      "`shipped` is the configuration above.", "",
+                      "`--set score_crop_s=N` (the decoder attends to the utterance and N s after it; shipped: 2), "
+                      "`mean` = `--set score_rank_by=mean` (phrases ranked by their mean token log-probability, as "
+                      "shipped before `sum`). w8, w30 and w8cN were recognised with the dictionary of their day "
+                      "(without `not_commands`) and ranked by `mean`; `shipped` is the configuration above.", "",
                       "| variant | best phrase of the right class | commands right | wrong | non-commands acted on |",
                       "| --- | --- | --- | --- | --- |"]
             en = load_language("en")
@@ -422,7 +423,8 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) 
     label = "decided while the closing silence ran out (speculation)" if speculate else "no speculation"
     return (f"## Decision time on the microphone path, {engine}, {label}\n\n"
             f"`python -m tools.bench_real timing --live{'' if speculate else ' --no-speculate'} --engine {engine} "
-            f"--n {n}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time through the Silero segmenter "
+            f"--n {n}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time in the microphone's "
+            f"{MICROPHONE_BLOCK_S * 1000:.0f} ms blocks through the Silero segmenter "
             f"and `listen.run_microphone`; {len(heard)} utterances decided, {used} of them from the speculation. "
             f"Load average at the end: {load:.2f} (2 cores).\n\n"
             f"| measured from | p50 | p95 | max |\n| --- | --- | --- | --- |\n"

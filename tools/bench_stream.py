@@ -289,7 +289,8 @@ def main(argv: list[str] | None = None) -> int:
         f"`{shown_cmd.rsplit(' ', 1)[0]} STREAM.wav`.",
         "A command is right when its segments carry its action and no other, wrong when any other action, missed "
         "when none. A false action is an action during non-command speech (words, sentences) or noise alone.",
-        f"Segmenter: {args.vad or 'vad.toml default (silero)'}; no stop spotter here (`recognize` is the main "
+        f"Segmenter: {args.vad or 'silero'}, settings "
+        f"{args.vad_settings or 'gcs_voice/audio/vad.toml'}; no stop spotter here (`recognize` is the main "
         "recogniser only; the spotter is measured in stop.md). A missed command is either not segmented (fewer "
         "segments than utterances) or segmented and rejected by the recogniser's decision.",
         f"Load average at the end of the run: {os.getloadavg()[0]:.1f} (2 cores).",

@@ -22,10 +22,13 @@ from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.errors import AudioError
 
 __all__ = ["AudioChunk", "read_wav", "read_pcm", "pcm_bytes", "resample", "wav_to_chunks",
-           "pcm_to_chunks", "microphone_chunks", "CHUNK_S"]
+           "pcm_to_chunks", "microphone_chunks", "CHUNK_S", "MICROPHONE_BLOCK_S"]
 
-#: Chunk length every source yields (100 ms: small enough for a responsive end-of-utterance).
+#: Chunk length files and pipes are read in (100 ms: the segmenter re-cuts them into its own windows).
 CHUNK_S = 0.1
+#: A live microphone's block: one Silero window (512 samples), so the segmenter sees each window as soon as
+#: it is spoken; a 100 ms block held up to 100 ms of the end of speech before anything could look at it.
+MICROPHONE_BLOCK_S = 512 / SAMPLE_RATE
 _FORMAT_PCM, _FORMAT_FLOAT, _FORMAT_EXTENSIBLE = 0x0001, 0x0003, 0xFFFE
 
 
@@ -155,7 +158,7 @@ def wav_to_chunks(path: str | Path, chunk_s: float = CHUNK_S) -> Iterator[AudioC
     return pcm_to_chunks(read_wav(path), chunk_s)
 
 
-def microphone_chunks(device: int | str | None = None, chunk_s: float = CHUNK_S) -> Iterator[AudioChunk]:
+def microphone_chunks(device: int | str | None = None, chunk_s: float = MICROPHONE_BLOCK_S) -> Iterator[AudioChunk]:
     """Chunks from a microphone through sounddevice (callback into a queue, as vosk's test_microphone.py).
 
     Runs until the consumer stops iterating. No PortAudio or no input device is an AudioError.
