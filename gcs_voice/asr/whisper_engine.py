@@ -212,9 +212,8 @@ class WhisperRecognizer:
         return self._forms[lang]
 
     def rank_by(self, lang: str) -> str:
-        """How phrases of ``lang`` are ranked: ``score_rank_by``, a word or a table by language ("default" for the rest)."""
-        setting = self.settings.get("score_rank_by", "sum")
-        return str(setting.get(lang, setting.get("default", "sum")) if isinstance(setting, dict) else setting)
+        """How phrases are ranked (``score_rank_by``: "mean" per token or "sum"; see whisper_score)."""
+        return str(self.settings.get("score_rank_by", "mean"))
 
     def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
         """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""

@@ -11,9 +11,9 @@ window):
 3. those phrases AND the free transcript are teacher-forced in ONE batched decoder call
    (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio.
 
-Phrases are ranked by their log-probability (``rank_by = "sum"``: the probability Whisper gives the whole
-phrase, period included, the maximum a posteriori choice; ``"mean"`` per token favours long phrases whose
-later tokens are easy once the first is given). The evidence for a decision is the **margin**: the best
+Phrases are ranked by their mean token log-probability (``rank_by = "mean"``; ``"sum"``, the probability
+Whisper gives the whole phrase, ranks the right class first more often on real speech but made no better
+decisions once its thresholds were re-chosen: docs/bench/real.md). The evidence for a decision is the **margin**: the best
 phrase's mean log-probability per token minus that of Whisper's own transcript (means, so a transcript
 longer than a command is not favoured by its length). It is 0 when Whisper itself heard a dictionary phrase, slightly negative
 when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
@@ -192,7 +192,7 @@ RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean"
 
 
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
-                    max_new_tokens: int = 6, top_k: int = 8, rank_by: str = "sum") -> PhraseScores:
+                    max_new_tokens: int = 6, top_k: int = 8, rank_by: str = "mean") -> PhraseScores:
     """Judge one encoded utterance against one dictionary (see the module docstring).
 
     ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded;
