@@ -307,6 +307,7 @@ def report(engines: list[str]) -> str:
                       "`--set score_window_s=30 --set score_crop_s=0` (Whisper's own 30 s window), `w8cN` = "
                       "`--set score_crop_s=N` (the decoder attends to the utterance and N s after it; shipped: 2), "
                       "`w4` = `--set score_window_s=4` (a 4 s encoder window: half the encoder time), "
+                      "`k4` = `--set score_top_k=4` (4 phrases teacher-forced instead of 8), "
                       "`sum` = `--set score_rank_by=sum` (phrases ranked by the log-probability of the whole phrase "
                       "instead of per token; its decisions here use the shipped thresholds, chosen for `mean`). "
                       "w8, w30 and w8cN were recognised with the dictionary of their day (without `not_commands`); "
