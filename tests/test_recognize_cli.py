@@ -141,13 +141,16 @@ def test_spanish_sentences_with_a_command_word_in_passing_do_nothing(whisper_mod
     (["GOOD", "--matcher", "nope"], "unknown matcher"),
     (["GOOD", "--engine", "sphinx", "--segment", "--vad-settings", "/nonexistent/vad.toml"], "cannot read the segmenter settings"),
     (["GOOD", "--engine", "sphinx", "--segment", "--vad-settings", "BADTOML"], "segmenter settings"),
+    (["GOOD", "--engine", "sphinx", "--segment", "--vad-settings", "TYPOTOML"], "unknown setting(s) min_silense_s"),
 ])
 def test_errors_are_one_line(wavs, tmp_path, args, message):
     empty = tmp_path / "empty.wav"
     subprocess.run(["sox", "-n", "-r", "16000", "-c", "1", "-b", "16", str(empty), "trim", "0", "0"], check=True)
     bad_toml = tmp_path / "vad.toml"
     bad_toml.write_text("min_silence_s = [\n")
-    args = [str(empty) if a == "EMPTY" else str(wavs["stop"]) if a == "GOOD" else str(bad_toml) if a == "BADTOML" else a
+    typo_toml = tmp_path / "typo.toml"
+    typo_toml.write_text("[silero]\nmin_silense_s = 0.2\n")
+    args = [str(empty) if a == "EMPTY" else str(wavs["stop"]) if a == "GOOD" else str(bad_toml) if a == "BADTOML" else str(typo_toml) if a == "TYPOTOML" else a
             for a in args]
     proc = recognize(*args)
     assert proc.returncode == 2

@@ -88,13 +88,13 @@ class VadSettings:
         return self.silero.min_silence_s if self.method == "silero" else self.energy.hangover_s
 
 
-def _section(cls: type, values: dict[str, Any]) -> Any:
+def _section(cls: type, values: dict[str, Any], path: Path = VAD_SETTINGS_PATH) -> Any:
     known = {f.name for f in fields(cls)}
     unknown = set(values) - known
     if unknown:
         from gcs_voice.errors import AudioError
 
-        raise AudioError(f"vad.toml: unknown setting(s) {', '.join(sorted(unknown))} for {cls.__name__}")
+        raise AudioError(f"{path}: unknown setting(s) {', '.join(sorted(unknown))} for {cls.__name__}")
     return cls(**{k: float(v) for k, v in values.items()})
 
 
@@ -109,8 +109,8 @@ def load_vad_settings(path: Path = VAD_SETTINGS_PATH, method: str | None = None)
         raise AudioError(f"unknown VAD method {chosen!r} (silero or energy)")
     return VadSettings(method=chosen, min_utterance_s=float(data.get("min_utterance_s", 0.15)),
                        max_utterance_s=float(data.get("max_utterance_s", 8.0)),
-                       energy=_section(EnergySettings, data.get("energy", {})),
-                       silero=_section(SileroSettings, data.get("silero", {})))
+                       energy=_section(EnergySettings, data.get("energy", {}), path),
+                       silero=_section(SileroSettings, data.get("silero", {}), path))
 
 
 def frame_dbfs(pcm: bytes) -> float:
