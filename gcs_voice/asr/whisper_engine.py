@@ -211,10 +211,6 @@ class WhisperRecognizer:
             self._forms[lang] = phrase_forms(self.tokenizer(lang), self.dictionaries[lang])
         return self._forms[lang]
 
-    def rank_by(self, lang: str) -> str:
-        """How phrases are ranked (``score_rank_by``: "mean" per token or "sum"; see whisper_score)."""
-        return str(self.settings.get("score_rank_by", "mean"))
-
     def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
         """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""
         s = self.settings
@@ -222,7 +218,7 @@ class WhisperRecognizer:
         candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
         scored = {code: score_utterance(self.model.model, self.tokenizer(code), self.phrase_forms(code), encoded,
                                         frames, int(s.get("score_max_new_tokens", 6)), int(s.get("score_top_k", 8)),
-                                        self.rank_by(code))
+                                        str(s.get("score_rank_by", "mean")))
                   for code in candidates}
         # --lang auto: the best phrase over the loaded languages picks the language (Whisper's language
         # detection on a short window calls espeak-ng Spanish English).
@@ -232,7 +228,7 @@ class WhisperRecognizer:
             "no_speech_prob": result.no_speech_prob,
             "free_logprob": result.free_logprob if math.isfinite(result.free_logprob) else -99.0,
             # the best phrase per token (what the margin compares) and its rank score (score_rank_by)
-            "phrase_score": (result.best[1] if result.best_mean is None else result.best_mean) if result.best else -99.0,
+            "phrase_score": max(result.best_per_token, -99.0),
             "phrase_rank_score": result.best[1] if result.best else -99.0,
             "margin": max(result.margin, -99.0),
             "class_gap": min(result.class_gap, 99.0),

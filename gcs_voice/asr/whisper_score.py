@@ -13,10 +13,10 @@ window):
 
 Phrases are ranked by their mean token log-probability (``rank_by = "mean"``; ``"sum"``, the probability
 Whisper gives the whole phrase, ranks the right class first more often on real speech but made no better
-decisions once its thresholds were re-chosen: docs/bench/real.md). The evidence for a decision is the **margin**: the best
-phrase's mean log-probability per token minus that of Whisper's own transcript (means, so a transcript
-longer than a command is not favoured by its length). It is 0 when Whisper itself heard a dictionary phrase, slightly negative
-when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
+decisions once its thresholds were re-chosen: docs/bench/real.md). The evidence for a decision is the
+**margin**: the best phrase's mean log-probability per token minus that of Whisper's own transcript
+(means, so a transcript longer than a command is not favoured by its length). It is 0 when Whisper
+itself heard a dictionary phrase, slightly negative when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
 memoria" heard perfectly does not become "derecha"). One threshold on it (``min_margin`` in
 ``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.bench_real tune``).
 """
@@ -161,11 +161,17 @@ class PhraseScores:
         return self.ranked[0] if self.ranked else None
 
     @property
+    def best_per_token(self) -> float:
+        """The best phrase's mean token log-probability (-inf when none was scored)."""
+        if not self.ranked:
+            return -math.inf
+        return self.ranked[0][1] if self.best_mean is None else self.best_mean
+
+    @property
     def margin(self) -> float:
         if not self.ranked:
             return -math.inf
-        best = self.ranked[0][1] if self.best_mean is None else self.best_mean
-        return best - self.free_logprob if math.isfinite(self.free_logprob) else 0.0
+        return self.best_per_token - self.free_logprob if math.isfinite(self.free_logprob) else 0.0
 
     @property
     def class_gap(self) -> float:
