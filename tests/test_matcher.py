@@ -247,6 +247,18 @@ def test_a_command_with_filler_or_misheard_words_still_acts(phrase: str, transcr
     assert get_matcher("phonetic").decide(_scored(phrase, transcript, 0.0), [EN]).action == action
 
 
+def test_speech_that_went_on_past_the_free_pass_does_nothing() -> None:
+    """Whisper's free pass ran out of tokens on speech that was no loop ("Go right and then ..."): every word
+    heard may be a command word, but the speech went on, so it was more than a command."""
+    cut = _scored("go right", "Go right and then go", 0.0)
+    cut.extra["transcript_cut"] = 1.0
+    decision = get_matcher("phonetic").decide(cut, [EN])
+    assert decision.action is None and "went on" in decision.reason, decision
+    ended = _scored("go right", "Go right", 0.0)
+    ended.extra["transcript_cut"] = 0.0
+    assert get_matcher("phonetic").decide(ended, [EN]).action == "go_right"
+
+
 def test_a_command_whisper_wrote_as_two_words_still_acts() -> None:
     """Whisper splits a word it does not know ("de tenerse" for "detenerse"): joined, it is the command."""
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse", 0.0), [ES]).action == "stop"

@@ -232,12 +232,13 @@ class WhisperRecognizer:
             "phrase_rank_score": result.best[1] if result.best else -99.0,
             "margin": max(result.margin, -99.0),
             "class_gap": min(result.class_gap, 99.0),
+            "transcript_cut": float(result.cut),  # the speech went on past the free pass: more than a command
         }
         if fixed_lang is None:
             _, extra["language_probability"], extra["dictionary_language_mass"] = self.detect(encoded, lang)
         hypotheses = tuple(Hypothesis(phrase.text, confidence=math.exp(min(0.0, score)), score=score)
                            for phrase, score in result.ranked[: int(s.get("score_alternatives", 5))])
-        return Recognition(hypotheses, self.name, lang, audio_s, extra, transcript=result.free_text)
+        return Recognition(hypotheses, self.name, lang, audio_s, extra, transcript=result.heard_text)
 
 
 def _log_mel_padded(extractor, audio: np.ndarray, window: int) -> np.ndarray:

@@ -33,7 +33,7 @@ from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
-           "score_utterance"]
+           "only_repeats", "score_utterance"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
 #: the class of a dictionary's ``not_commands``: scored like phrases, never acted on
@@ -135,6 +135,14 @@ def first_unit_length(pieces: Sequence[str]) -> int:
     return n
 
 
+def only_repeats(pieces: Sequence[str], unit: int) -> bool:
+    """Whether every word after the first ``unit`` tokens repeats a word of that unit ("Up, up, up", not
+    "Turn left, turn left and take a picture"): a loop says nothing new, anything else says more."""
+    words = ["".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces]
+    said = {w for w in words[:unit] if w}
+    return all(w in said for w in words[unit:] if w)
+
+
 @dataclass(frozen=True)
 class PhraseScores:
     """One utterance judged against one dictionary.
@@ -144,7 +152,9 @@ class PhraseScores:
     the best phrase's mean token log-probability; ``free_text`` / ``free_logprob``: Whisper's own
     transcript and its teacher-forced mean log-probability (-inf when it wrote nothing);
     ``margin``: best phrase minus free transcript, per token; ``class_gap``: best phrase minus the best
-    phrase of another class (or not-command), in rank scores.
+    phrase of another class (or not-command), in rank scores. ``heard_text``: the whole greedy transcript
+    (``free_text`` is its first unit, without loops); ``cut``: the greedy pass ran out of tokens on speech
+    that was not a loop of its first unit, so the speech went on past anything a command says.
     """
 
     ranked: tuple[tuple[Phrase, float], ...]
@@ -155,6 +165,8 @@ class PhraseScores:
     not_command: float = -math.inf
     #: the best phrase's mean token log-probability (None: its rank score is that mean)
     best_mean: float | None = None
+    heard_text: str = ""
+    cut: bool = False
 
     @property
     def best(self) -> tuple[Phrase, float] | None:
@@ -230,7 +242,11 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # A stable sort keeps ties in dictionary order: same audio, same phrases scored.
     chosen = [int(i) for i in np.argsort(-known_mean, kind="stable")[:max(1, top_k)]]
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
-    unit = greedy[:first_unit_length([tokenizer.decode([t]) for t in greedy])] if greedy else []
+    pieces = [tokenizer.decode([t]) for t in greedy]
+    unit = greedy[:first_unit_length(pieces)] if greedy else []
+    # Out of tokens on speech that is not a loop: it said more than the longest command (max_new_tokens
+    # leaves room for any phrase; tests/test_asr_whisper.py holds the shipped dictionaries to that).
+    cut = len(greedy) >= max_new_tokens and not only_repeats(pieces, len(unit))
     if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):
         unit = unit + list(tokenizer.encode("."))
     else:
@@ -257,4 +273,4 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
-                        not_command, ordered[0][2] if ordered else None)
+                        not_command, ordered[0][2] if ordered else None, tokenizer.decode(greedy).strip(), cut)

@@ -205,9 +205,12 @@ class Matcher:
         The margin says the phrase is nearly as likely as what Whisper heard; but a sentence that starts
         with a command ("hacia adelante está el río") makes the phrase likely too. A command is said
         with the command's words, so a heard word that sounds like no word of the winning class
-        (``word_max_distance``) and is no word of the dictionary at all means other speech.
+        (``word_max_distance``) and is no word of the dictionary at all means other speech; so does
+        speech that went on past the engine's free pass (``transcript_cut``: "Go right and then ...").
         """
         limit = transcript_limits(recognition.engine, self.thresholds_path).get("word_max_distance")
+        if limit is not None and recognition.extra.get("transcript_cut"):
+            return f"not a command: heard '{recognition.transcript}…', and the speech went on"
         heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
         if limit is None or len(heard.split()) <= len(best.phrase.key.split()):
             return ""  # no more words than the command itself: the margin has judged them
