@@ -157,6 +157,7 @@ def test_a_loop_says_nothing_new_but_more_words_do():
 
     loop = [" Go", " forward", ",", " go", " forward", ",", " go"]
     assert only_repeats(loop, first_unit_length(loop))
+    assert only_repeats([" Desarmas", " los", " motores", ".", " Des"], 4)  # out of tokens inside the loop
     more = [" Turn", " left", ",", " turn", " left", ",", " and", " take"]
     assert not only_repeats(more, first_unit_length(more))
 

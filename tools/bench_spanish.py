@@ -48,15 +48,19 @@ def main(argv: list[str] | None = None) -> int:
     matcher = get_matcher(DEFAULT_MATCHER)
     sentences = tomllib.loads((REPO / "tools" / "corpus_sentences.toml").read_text(encoding="utf-8"))["es"]
     right = wrong = n_cmd = 0
+    missed: list[str] = []
     acted: dict[str, list[str]] = {"passing": [], "ood": []}
     counts = {"passing": 0, "ood": 0}
     for voice, wpm in VOICES:
         for phrase in es.phrases:
             result, _ = recognise_one(recognizer, _audio(phrase.text, voice, wpm), "es")
-            got = matcher.decide(result, [es]).action
+            decision = matcher.decide(result, [es])
+            got = decision.action
             n_cmd += 1
             right += got == phrase.action
             wrong += got is not None and got != phrase.action
+            if got != phrase.action:
+                missed.append(f"| {phrase.text} | {voice} | {got or 'no action'} | {decision.reason or '–'} |")
         for kind in ("passing", "ood"):
             for text in sentences.get(kind, []):
                 result, _ = recognise_one(recognizer, _audio(text, voice, wpm), "es")
@@ -74,6 +78,9 @@ def main(argv: list[str] | None = None) -> int:
         lines.append(f"| {label} | {counts[kind]} | – | – | {pct(len(acted[kind]), counts[kind])} |")
     lines += [""] + ([f"Acted on: {'; '.join(acted['passing'] + acted['ood'])}.", ""]
                      if acted["passing"] or acted["ood"] else [])
+    if missed:
+        lines += ["Commands not done as said (what the pipeline did and why):", "",
+                  "| said | voice | done | reason |", "| --- | --- | --- | --- |", *missed, ""]
     args.out.write_text("\n".join(lines), encoding="utf-8")
     print("\n".join(lines))
     return 0

@@ -137,10 +137,13 @@ def first_unit_length(pieces: Sequence[str]) -> int:
 
 def only_repeats(pieces: Sequence[str], unit: int) -> bool:
     """Whether every word after the first ``unit`` tokens repeats a word of that unit ("Up, up, up", not
-    "Turn left, turn left and take a picture"): a loop says nothing new, anything else says more."""
-    words = ["".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces]
-    said = {w for w in words[:unit] if w}
-    return all(w in said for w in words[unit:] if w)
+    "Turn left, turn left and take a picture"): a loop says nothing new, anything else says more. The
+    last word may be the start of one ("Desarmas los motores. Des": the pass ran out inside the loop)."""
+    words = [w for w in ("".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces[unit:]) if w]
+    said = {w for w in ("".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces[:unit]) if w}
+    if words and words[-1] not in said and any(w.startswith(words[-1]) for w in said):
+        words = words[:-1]
+    return all(w in said for w in words)
 
 
 @dataclass(frozen=True)
@@ -152,8 +155,8 @@ class PhraseScores:
     the best phrase's mean token log-probability; ``free_text`` / ``free_logprob``: Whisper's own
     transcript and its teacher-forced mean log-probability (-inf when it wrote nothing);
     ``margin``: best phrase minus free transcript, per token; ``class_gap``: best phrase minus the best
-    phrase of another class (or not-command), in rank scores. ``heard_text``: the whole greedy transcript
-    (``free_text`` is its first unit, without loops); ``cut``: the greedy pass ran out of tokens on speech
+    phrase of another class (or not-command), in rank scores. ``heard_text``: the whole greedy transcript,
+    or its first unit when the rest only loops over it (``free_text`` is always that first unit); ``cut``: the greedy pass ran out of tokens on speech
     that was not a loop of its first unit, so the speech went on past anything a command says.
     """
 
@@ -246,7 +249,8 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     unit = greedy[:first_unit_length(pieces)] if greedy else []
     # Out of tokens on speech that is not a loop: it said more than the longest command (max_new_tokens
     # leaves room for any phrase; tests/test_asr_whisper.py holds the shipped dictionaries to that).
-    cut = len(greedy) >= max_new_tokens and not only_repeats(pieces, len(unit))
+    loop = only_repeats(pieces, len(unit))
+    cut = len(greedy) >= max_new_tokens and not loop
     if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):
         unit = unit + list(tokenizer.encode("."))
     else:
@@ -273,4 +277,5 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
-                        not_command, ordered[0][2] if ordered else None, tokenizer.decode(greedy).strip(), cut)
+                        not_command, ordered[0][2] if ordered else None,
+                        tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut)
