@@ -259,6 +259,19 @@ def test_speech_that_went_on_past_the_free_pass_does_nothing() -> None:
     assert get_matcher("phonetic").decide(ended, [EN]).action == "go_right"
 
 
+@pytest.mark.parametrize(("phrase", "transcript", "dictionary"), [
+    ("go right", "Go right, go left", "en"),
+    ("go forward", "Go forward and stop", "en"),
+    ("sube", "Sube y para", "es"),
+])
+def test_two_commands_in_one_utterance_do_nothing(phrase: str, transcript: str, dictionary: str) -> None:
+    """A heard word that is by itself a command of another class: which one was meant? Neither is done."""
+    decision = get_matcher("phonetic").decide(_scored(phrase, transcript, 0.0), [ES if dictionary == "es" else EN])
+    assert decision.action is None and "two commands" in decision.reason, decision
+    # words of the winning class itself are no second command
+    assert get_matcher("phonetic").decide(_scored("turn right", "Turn right, turn right", 0.0), [EN]).action == "turn_right"
+
+
 def test_a_command_whisper_wrote_as_two_words_still_acts() -> None:
     """Whisper splits a word it does not know ("de tenerse" for "detenerse"): joined, it is the command."""
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse", 0.0), [ES]).action == "stop"

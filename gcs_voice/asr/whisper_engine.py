@@ -217,7 +217,7 @@ class WhisperRecognizer:
         encoded, frames = self.encode_short(audio)
         candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
         scored = {code: score_utterance(self.model.model, self.tokenizer(code), self.phrase_forms(code), encoded,
-                                        frames, int(s.get("score_max_new_tokens", 6)), int(s.get("score_top_k", 8)),
+                                        frames, int(s.get("score_extra_tokens", 3)), int(s.get("score_top_k", 8)),
                                         str(s.get("score_rank_by", "mean")))
                   for code in candidates}
         # --lang auto: the best phrase over the loaded languages picks the language (Whisper's language

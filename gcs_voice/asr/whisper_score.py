@@ -213,7 +213,7 @@ RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean"
 
 
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
-                    max_new_tokens: int = 6, top_k: int = 8, rank_by: str = "mean") -> PhraseScores:
+                    extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean") -> PhraseScores:
     """Judge one encoded utterance against one dictionary (see the module docstring).
 
     ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded;
@@ -223,6 +223,9 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     import ctranslate2
 
     prompt = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
+    # The free pass has room for the longest phrase (or not-command) of the dictionary, its period and
+    # ``extra_tokens`` more ("Okay, go to the right."): a transcript that runs out of it said more than a command.
+    max_new_tokens = max((len(t) for t in forms.tokens), default=0) + extra_tokens
     free = model.generate(encoder_output, [prompt], max_length=len(prompt) + max_new_tokens, beam_size=1,
                           return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
                           suppress_blank=True, suppress_tokens=[-1])[0]
@@ -247,8 +250,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     pieces = [tokenizer.decode([t]) for t in greedy]
     unit = greedy[:first_unit_length(pieces)] if greedy else []
-    # Out of tokens on speech that is not a loop: it said more than the longest command (max_new_tokens
-    # leaves room for any phrase; tests/test_asr_whisper.py holds the shipped dictionaries to that).
+    # Out of tokens on speech that is not a loop: it said more than the longest command.
     loop = only_repeats(pieces, len(unit))
     cut = len(greedy) >= max_new_tokens and not loop
     if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):

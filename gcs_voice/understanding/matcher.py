@@ -206,7 +206,8 @@ class Matcher:
         with a command ("hacia adelante está el río") makes the phrase likely too. A command is said
         with the command's words, so a heard word that sounds like no word of the winning class
         (``word_max_distance``) and is no word of the dictionary at all means other speech; so does
-        speech that went on past the engine's free pass (``transcript_cut``: "Go right and then ...").
+        speech that went on past the engine's free pass (``transcript_cut``: "Go right and then ..."). A heard
+        word that is by itself a command of another class ("Go right, go left") means two commands: neither.
         """
         limit = transcript_limits(recognition.engine, self.thresholds_path).get("word_max_distance")
         if limit is not None and recognition.extra.get("transcript_cut"):
@@ -216,12 +217,17 @@ class Matcher:
             return ""  # no more words than the command itself: the margin has judged them
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.key.split()}
         vocabulary = {w for p in best.dictionary.phrases for w in p.key.split()}
+        commands = {p.key: p.action for p in best.dictionary.phrases
+                    if " " not in p.key and p.action != best.phrase.action}
         self.prepare([best.dictionary])
 
         def fits(word: str) -> bool:
             return word in vocabulary or any(self.word_distance(word, w, best.dictionary) <= limit for w in words)
 
         heard_words = heard.split()
+        second = next((w for w in heard_words if w not in words and w in commands), None)
+        if second is not None:
+            return f"two commands: heard '{recognition.transcript}', and '{second}' is a {commands[second]} command"
         i = 0
         while i < len(heard_words):
             word = heard_words[i]
