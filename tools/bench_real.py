@@ -384,7 +384,7 @@ def timing(engine: str, model: str | None, n: int) -> str:
             f"| {p50:.0f} ms | {p95:.0f} ms | {max(times):.0f} ms | {sum(times) / 1000 / audio_s:.3f} |\n")
 
 
-def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) -> str:
+def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, vad_settings: Path | None = None) -> str:
     """Time to a decision on the microphone path: ``n`` clean test-split files, 1.5 s apart, fed in real
     time (in the microphone's blocks, gcs_voice.audio.sources.MICROPHONE_BLOCK_S) through the Silero segmenter and ``listen.run_microphone`` exactly as a live
     session runs them (no flight). Timed from the end of speech (the last window Silero called speech)
@@ -412,7 +412,8 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) 
     pipeline = listen.VoicePipeline(recognizer, get_matcher(MATCHER), [en], "en", bus)
     pipeline.hear(pcm[:32_000], "warm-up")  # model loading is not a decision
     bus.history.clear()
-    post_pad_s = load_vad_settings().silero.post_pad_s
+    settings = load_vad_settings(vad_settings) if vad_settings else load_vad_settings()
+    post_pad_s = settings.silero.post_pad_s
     closed: dict[float, float] = {}  # utterance end time -> wall time the segmenter closed it
     tentatives = listen.TentativeUtterances() if speculate else None
 
@@ -432,7 +433,8 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) 
                     time.sleep(wait)
                 yield chunk
 
-        for utt in segment_utterances(realtime(), on_tentative=(lambda u: tentatives(u.pcm)) if tentatives else None):
+        for utt in segment_utterances(realtime(), settings,
+                                      on_tentative=(lambda u: tentatives(u.pcm)) if tentatives else None):
             closed[t0 + utt.end_s] = time.time()
             yield utt.pcm, t0 + utt.end_s
 
@@ -447,14 +449,14 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True) 
     label = "decided while the closing silence ran out (speculation)" if speculate else "no speculation"
     return (f"## Decision time on the microphone path, {engine}, {label}\n\n"
             f"`python -m tools.bench_real timing --live{'' if speculate else ' --no-speculate'} --engine {engine} "
-            f"--n {n}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time in the microphone's "
+            f"--n {n}{f' --vad-settings {vad_settings}' if vad_settings else ''}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time in the microphone's "
             f"{MICROPHONE_BLOCK_S * 1000:.0f} ms blocks through the Silero segmenter "
             f"and `listen.run_microphone`; {len(heard)} utterances decided, {used} of them from the speculation. "
             f"Load average at the end: {load:.2f} (2 cores).\n\n"
             f"| measured from | p50 | p95 | max |\n| --- | --- | --- | --- |\n"
             f"| the end of speech (last window Silero called speech) | {statistics.median(from_speech):.0f} ms | "
             f"{np.percentile(from_speech, 95):.0f} ms | {max(from_speech):.0f} ms |\n"
-            f"| the close of the utterance (after {load_vad_settings().silero.min_silence_s:g} s of non-speech) | "
+            f"| the close of the utterance (after {settings.silero.min_silence_s:g} s of non-speech) | "
             f"{statistics.median(from_close):.0f} ms | {np.percentile(from_close, 95):.0f} ms | {max(from_close):.0f} ms |\n")
 
 
@@ -483,6 +485,7 @@ def main(argv: list[str] | None = None) -> int:
     tim.add_argument("--out", type=Path, help="also write the section to this file (docs/bench/real_timing.md)")
     tim.add_argument("--live", action="store_true", help="the microphone path in real time (segmenter + voice thread)")
     tim.add_argument("--no-speculate", action="store_true", help="with --live: decide only once the utterance closed")
+    tim.add_argument("--vad-settings", type=Path, help="with --live: a segmenter settings file (to compare settings)")
     args = parser.parse_args(argv)
     global _TAG
     _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
@@ -508,7 +511,7 @@ def main(argv: list[str] | None = None) -> int:
         return tune(args.engine, args.write)
     if args.stage == "timing":
         model = args.model if args.engine.startswith("whisper") else None
-        text = (live_timing(args.engine, model, args.n, not args.no_speculate) if args.live
+        text = (live_timing(args.engine, model, args.n, not args.no_speculate, args.vad_settings) if args.live
                 else timing(args.engine, model, args.n))
         print(text)
         if args.out:
