@@ -113,6 +113,11 @@ def trim_silence(audio: np.ndarray, rel_db: float = 35.0, floor_db: float = -60.
     return audio[max(0, loud[0] * 160 - margin): min(audio.size, loud[-1] * 160 + 400 + margin)]
 
 
+def _word(piece: str) -> str:
+    """A token's text as a bare lower-case word ("" for punctuation)."""
+    return "".join(ch for ch in piece.lower() if ch.isalnum())
+
+
 def first_unit_length(pieces: Sequence[str]) -> int:
     """How many leading tokens of a free transcript form its first unit, given each token's text.
 
@@ -120,7 +125,7 @@ def first_unit_length(pieces: Sequence[str]) -> int:
     near-certain probabilities and would inflate the transcript's mean. The unit ends before the
     first token whose word repeats the first word; trailing punctuation is dropped.
     """
-    words = ["".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces]
+    words = [_word(p) for p in pieces]
     n = len(words)
     first = next((w for w in words if w), "")
     seen = False
@@ -139,8 +144,8 @@ def only_repeats(pieces: Sequence[str], unit: int) -> bool:
     """Whether every word after the first ``unit`` tokens repeats a word of that unit ("Up, up, up", not
     "Turn left, turn left and take a picture"): a loop says nothing new, anything else says more. The
     last word may be the start of one ("Desarmas los motores. Des": the pass ran out inside the loop)."""
-    words = [w for w in ("".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces[unit:]) if w]
-    said = {w for w in ("".join(ch for ch in p.lower() if ch.isalnum()) for p in pieces[:unit]) if w}
+    words = [w for w in map(_word, pieces[unit:]) if w]
+    said = {w for w in map(_word, pieces[:unit]) if w}
     if words and words[-1] not in said and any(w.startswith(words[-1]) for w in said):
         words = words[:-1]
     return all(w in said for w in words)
@@ -156,8 +161,9 @@ class PhraseScores:
     transcript and its teacher-forced mean log-probability (-inf when it wrote nothing);
     ``margin``: best phrase minus free transcript, per token; ``class_gap``: best phrase minus the best
     phrase of another class (or not-command), in rank scores. ``heard_text``: the whole greedy transcript,
-    or its first unit when the rest only loops over it (``free_text`` is always that first unit); ``cut``: the greedy pass ran out of tokens on speech
-    that was not a loop of its first unit, so the speech went on past anything a command says.
+    or its first unit when the rest only loops over it (``free_text`` is always that first unit); ``cut``:
+    the greedy pass ran out of tokens on speech that was not a loop of its first unit, so the speech went on
+    past anything a command says.
     """
 
     ranked: tuple[tuple[Phrase, float], ...]
