@@ -227,7 +227,8 @@ def test_a_not_command_is_a_rival_class_of_every_phrase() -> None:
 @pytest.mark.parametrize("samples,window", [(16000, 128000), (12345, 128000), (127000, 128000), (40000, 44800)])
 def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, window):
     """Scoring mode computes the log-mel on the utterance and fills in the silent rest of the window: the
-    encoder must see exactly what Whisper's own extractor gives for the zero-padded window."""
+    encoder must see what Whisper's own extractor gives for the zero-padded window. Bit for bit on some
+    machines; elsewhere the FFT of a shorter frame count rounds a few values differently, by a float32 ulp."""
     from faster_whisper.feature_extractor import FeatureExtractor
 
     from gcs_voice.asr.whisper_engine import _log_mel_padded
@@ -236,4 +237,6 @@ def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, wi
     audio = (np.random.default_rng(samples).standard_normal(samples) * 0.1).astype(np.float32)
     padded = np.zeros(window, np.float32)
     padded[:samples] = audio
-    assert np.array_equal(_log_mel_padded(extractor, audio, window), extractor(padded)[:, :-1])
+    ours, whisper = _log_mel_padded(extractor, audio, window), extractor(padded)[:, :-1]
+    assert ours.shape == whisper.shape
+    assert float(np.max(np.abs(ours - whisper))) <= 2.5e-7

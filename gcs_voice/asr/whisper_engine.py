@@ -244,7 +244,8 @@ class WhisperRecognizer:
 def _log_mel_padded(extractor, audio: np.ndarray, window: int) -> np.ndarray:
     """Whisper's log-mel of ``audio`` followed by zeros up to ``window`` samples, computed on the audio only.
 
-    Bit for bit ``extractor(zero-padded window)[:, :-1]``: every frame lying wholly in the zeros comes out
+    ``extractor(zero-padded window)[:, :-1]`` to float32 rounding (bit for bit where the FFT of the shorter
+    part rounds alike; within 1e-7 elsewhere): every frame lying wholly in the zeros comes out
     of Whisper's normalisation as one constant (log10 of its 1e-10 floor, clamped to 8 below the loudest
     frame, which silence cannot raise), so the frames after the audio's are copies of the last frame
     computed, which lies in the zeros too (most of an 8 s window is silence after a one-second command).
