@@ -255,10 +255,21 @@ def tune(engine: str, write: bool) -> int:
           f"on <= {100 * LIMITS['clean'][0] * DEV_SAFETY:g} % each, wrong <= {100 * LIMITS['clean'][1]:g} %; "
           f"objective = right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on")
     feasible = sorted((r for r in rows if r[1]), key=lambda r: r[2], reverse=True)
-    for values, ok, score, per in feasible[:10]:
-        cells = "   ".join(f"{cond} {c.right}/{c.commands} right, {c.wrong} wrong, {c.words_acted}/{c.words} words, "
+
+    def cells(per: dict[str, Counts]) -> str:
+        return "   ".join(f"{cond} {c.right}/{c.commands} right, {c.wrong} wrong, {c.words_acted}/{c.words} words, "
                            f"{c.sentences_acted}/{c.sentences} sentences" for cond, c in per.items())
-        print(f"  {values}  objective {score}: {cells}")
+
+    for values, ok, score, per in feasible[:10]:
+        print(f"  {values}  objective {score}: {cells(per)}")
+    # the thresholds in thresholds.toml now, for comparison (a rebuilt cache can move them out of the limits)
+    shipped = tomllib.loads(THRESHOLDS_PATH.read_text(encoding="utf-8"))
+    for key in table.split("."):
+        shipped = shipped.get(key, {})
+    now = next((r for r in rows if r[0] == {k: shipped.get(k) for k in grid}), None)
+    if now is not None:
+        print(f"shipped now: {now[0]}  objective {now[2]}, {'within' if now[1] else 'OUTSIDE'} the clean limits: "
+              f"{cells(now[3])}")
     if not feasible:
         print("no setting meets the clean limits on dev", file=sys.stderr)
         return 1
