@@ -12,6 +12,7 @@ import math
 import shutil
 import subprocess
 import sys
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -83,17 +84,19 @@ class FlyResult:
         return [e for e in self.events if e["kind"] == "command" and e.get("origin") == origin]
 
 
-def run_fly(connection: str, wavs: list[Path], tmp_path: Path, *, takeoff_m: float | None = 1.5, gap_s: float = 3.0,
-            hold_s: float = 2.0, extra: list[str] = (), timeout_s: float = 150.0) -> FlyResult:
-    """``python -m gcs_voice --connect ... --say ... --headless --json`` as a user would run it."""
+def _fly_command(connection: str, wavs: list[Path], tmp_path: Path, takeoff_m: float | None, gap_s: float,
+                 hold_s: float, extra: Sequence[str]) -> list[str]:
     cmd = [sys.executable, "-m", "gcs_voice", "--connect", connection, "--say", *map(str, wavs), "--gap", str(gap_s),
            "--hold", str(hold_s), "--headless", "--json", "--log-dir", str(tmp_path), "--log-name", "flight",
            "--engine", "sphinx", *extra]
     if takeoff_m is not None:
         cmd += ["--takeoff", str(takeoff_m)]
-    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=timeout_s)
+    return cmd
+
+
+def _fly_result(returncode: int, stdout: str, stderr: str, tmp_path: Path) -> FlyResult:
     events = []
-    for line in proc.stdout.splitlines():
+    for line in stdout.splitlines():
         try:
             events.append(json.loads(line))
         except json.JSONDecodeError:
@@ -102,7 +105,47 @@ def run_fly(connection: str, wavs: list[Path], tmp_path: Path, *, takeoff_m: flo
     # The console (--json) and the session log carry the same records.
     if jsonl.is_file():
         assert [e["kind"] for e in read_session_log(jsonl)] == [e["kind"] for e in events]
-    return FlyResult(proc.returncode, events, proc.stdout, proc.stderr, tmp_path / "flight.tlog", jsonl)
+    return FlyResult(returncode, events, stdout, stderr, tmp_path / "flight.tlog", jsonl)
+
+
+def run_fly(connection: str, wavs: list[Path], tmp_path: Path, *, takeoff_m: float | None = 1.5, gap_s: float = 3.0,
+            hold_s: float = 2.0, extra: Sequence[str] = (), timeout_s: float = 150.0) -> FlyResult:
+    """``python -m gcs_voice --connect ... --say ... --headless --json`` as a user would run it."""
+    cmd = _fly_command(connection, wavs, tmp_path, takeoff_m, gap_s, hold_s, extra)
+    proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=timeout_s)
+    return _fly_result(proc.returncode, proc.stdout, proc.stderr, tmp_path)
+
+
+class FlyProcess:
+    """``run_fly`` started in the background: ``started()`` waits for its "session start" record (the
+    recogniser is loaded and the link opens next), so a vehicle started after it is met from its first packet."""
+
+    def __init__(self, connection: str, wavs: list[Path], tmp_path: Path, *, takeoff_m: float | None = 1.5,
+                 gap_s: float = 3.0, hold_s: float = 2.0, extra: Sequence[str] = ()) -> None:
+        self.tmp_path = tmp_path
+        self.proc = subprocess.Popen(_fly_command(connection, wavs, tmp_path, takeoff_m, gap_s, hold_s, extra),
+                                     cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self._head: list[str] = []
+
+    def started(self) -> None:
+        """Block until the session says it has started (or fail with what it printed if it ended first)."""
+        assert self.proc.stdout is not None
+        for line in self.proc.stdout:
+            self._head.append(line)
+            if '"kind": "session"' in line and '"phase": "start"' in line:
+                return
+        raise AssertionError("gcs-voice ended before its session started: " + "".join(self._head)
+                             + (self.proc.stderr.read() if self.proc.stderr else ""))
+
+    def finish(self, timeout_s: float) -> FlyResult:
+        try:
+            rest, stderr = self.proc.communicate(timeout=timeout_s)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            rest, stderr = self.proc.communicate()
+            raise AssertionError(f"gcs-voice still running after {timeout_s:g} s: " + "".join(self._head) + rest
+                                 + stderr) from None
+        return _fly_result(self.proc.returncode, "".join(self._head) + rest, stderr, self.tmp_path)
 
 
 def speed_at(flight: Flight, t_s: float) -> float:
