@@ -38,7 +38,7 @@ import numpy as np
 from gcs_voice.asr.base import Hypothesis, Recognition
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import get_matcher
-from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
 from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
 REPO = Path(__file__).resolve().parent.parent
@@ -263,7 +263,7 @@ def tune(engine: str, write: bool) -> int:
     for values, ok, score, per in feasible[:10]:
         print(f"  {values}  objective {score}: {cells(per)}")
     # the thresholds in thresholds.toml now, for comparison (a rebuilt cache can move them out of the limits)
-    shipped = tomllib.loads(THRESHOLDS_PATH.read_text(encoding="utf-8"))
+    shipped = load_thresholds()
     for key in table.split("."):
         shipped = shipped.get(key, {})
     now = next((r for r in rows if r[0] == {k: shipped.get(k) for k in grid}), None)
