@@ -240,3 +240,30 @@ def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, wi
     ours, whisper = _log_mel_padded(extractor, audio, window), extractor(padded)[:, :-1]
     assert ours.shape == whisper.shape
     assert float(np.max(np.abs(ours - whisper))) <= 2.5e-7
+
+
+def test_forms_that_tie_on_the_greedy_path_are_chosen_by_what_whisper_wrote(whisper_model_dir) -> None:
+    """When Whisper's transcript leaves every form at its first token ("¡Wenete a la izquier" for "muévete a
+    la izquierda"), all forms sharing that token tie; dictionary order (derecha before izquierda) must not
+    decide which class gets scored. A form the greedy pass knows better still comes first."""
+    import tokenizers
+    from faster_whisper.tokenizer import Tokenizer
+
+    from gcs_voice.asr.whisper_score import phrase_forms, preselect
+
+    hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
+    tokenizer = Tokenizer(hf, True, task="transcribe", language="es")
+    forms = phrase_forms(tokenizer, load_language("es"))
+    heard = " ¡Wenete a la izquier"
+    greedy = list(tokenizer.encode(heard))
+    flat = np.full(hf.get_vocab_size(), -math.log(hf.get_vocab_size()))
+    steps = [flat.copy() for _ in greedy]
+    chosen = preselect(forms, greedy, steps, heard, top_k=2)
+    assert {forms.phrases[i].text for i in chosen} == {"muévete a la izquierda"}, [forms.phrases[i].text for i in chosen]
+    assert forms.phrases[chosen[0]].action == "go_left"
+    # the greedy pass's own evidence outranks nearness of words
+    firsts = [toks[0] for toks in forms.tokens]
+    alone = next(i for i, p in enumerate(forms.phrases) if p.action == "up" and firsts.count(firsts[i]) == 1)
+    steps[0] = flat.copy()
+    steps[0][firsts[alone]] = -0.1
+    assert preselect(forms, greedy, steps, heard, top_k=2)[0] == alone

@@ -6,7 +6,8 @@ window):
 1. Whisper transcribes freely, greedily, a few tokens at most (its own opinion of the audio);
 2. every dictionary phrase (written as Whisper writes it, " Go up." and " go up.") is ranked by what
    that greedy pass already knows of it (the log-probabilities of its tokens along the greedy path up to
-   where it leaves the path); only the ``top_k`` most promising are scored, since each costs a decoder
+   where it leaves the path; forms that tie, having left it at the same token, by how near their words
+   are to the transcript); only the ``top_k`` most promising are scored, since each costs a decoder
    pass over the encoder output;
 3. those phrases AND the free transcript are teacher-forced in ONE batched decoder call
    (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio.
@@ -33,7 +34,7 @@ from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
-           "only_repeats", "score_utterance"]
+           "only_repeats", "preselect", "score_utterance"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
 #: the class of a dictionary's ``not_commands``: scored like phrases, never acted on
@@ -218,6 +219,46 @@ def _mean(logprobs: np.ndarray) -> float:
 RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean": lambda lp: _mean(lp)}
 
 
+def _plain(text: str) -> str:
+    return " ".join("".join(ch if ch.isalnum() else " " for ch in text.lower()).split())
+
+
+def _text_nearness(forms: PhraseForms, heard: str) -> list[float]:
+    """How near each form's words are to the greedy transcript (rapidfuzz ratio, 0-100): a tie-break only."""
+    from rapidfuzz import fuzz
+
+    heard = _plain(heard)
+    return [fuzz.ratio(_plain(phrase.text), heard) for phrase in forms.phrases]
+
+
+def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndarray], heard: str,
+              top_k: int) -> list[int]:
+    """The indices of the ``top_k`` forms worth teacher-forcing, best first.
+
+    What the greedy pass already knows of each form ranks it: the log-probs (``steps``, one log-softmax
+    per greedy step) of its tokens along the greedy path up to and including the first token where it
+    leaves the path, averaged. Forms that leave the path at the same token tie exactly ("muévete a la
+    derecha" and "muévete a la izquierda" when the transcript already differs at "muévete"), and
+    dictionary order would then decide which class is scored at all; so ties go to the form whose words
+    are nearest what Whisper wrote (``heard``: "¡Wenete a la izquier"), then to dictionary order (same
+    audio, same phrases scored).
+    """
+    known_mean = np.full(len(forms.tokens), -np.inf)
+    for i, toks in enumerate(forms.tokens):
+        known: list[float] = []
+        for t, tok in enumerate(toks):
+            if t >= len(steps):
+                break
+            known.append(float(steps[t][tok]))
+            if t >= len(greedy) or tok != greedy[t]:
+                break
+        if known:
+            known_mean[i] = sum(known) / len(known)
+    nearness = _text_nearness(forms, heard)
+    order = sorted(range(len(forms.tokens)), key=lambda i: (-known_mean[i], -nearness[i], i))
+    return order[:max(1, top_k)]
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
                     extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean") -> PhraseScores:
     """Judge one encoded utterance against one dictionary (see the module docstring).
@@ -237,24 +278,9 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
                           suppress_blank=True, suppress_tokens=[-1])[0]
     greedy = list(free.sequences_ids[0])
     steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0]]
-    # What the greedy pass already knows of each form: the log-probs of its tokens along the greedy
-    # path up to (and including) the first token where it leaves the path. Their mean ranks the forms;
-    # only the best ``top_k`` are teacher-forced (each costs a decoder pass over the encoder output).
-    known_mean = np.full(len(forms.tokens), -np.inf)
-    for i, toks in enumerate(forms.tokens):
-        known: list[float] = []
-        for t, tok in enumerate(toks):
-            if t >= len(steps):
-                break
-            known.append(float(steps[t][tok]))
-            if t >= len(greedy) or tok != greedy[t]:
-                break
-        if known:
-            known_mean[i] = sum(known) / len(known)
-    # A stable sort keeps ties in dictionary order: same audio, same phrases scored.
-    chosen = [int(i) for i in np.argsort(-known_mean, kind="stable")[:max(1, top_k)]]
-    # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     pieces = [tokenizer.decode([t]) for t in greedy]
+    chosen = preselect(forms, greedy, steps, "".join(pieces), top_k)
+    # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []
     # Out of tokens on speech that is not a loop: it said more than the longest command.
     loop = only_repeats(pieces, len(unit))
