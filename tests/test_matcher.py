@@ -293,3 +293,16 @@ def test_evidence_limits_can_differ_by_language(tmp_path) -> None:
     assert matcher.decide(english, [EN]).action == "up"
     decision = matcher.decide(spanish, [ES])
     assert decision.action is None and "class_gap 0.70 < 1.00" in decision.reason
+
+
+def test_spanish_judges_the_words_of_a_short_transcript_too() -> None:
+    """espeak-ng "me oyes bien" was heard "Ma Yes, Lien": no more words than "a la izquierda", within its margin,
+    and no word of it sounds like a go_left word. Spanish judges short transcripts word by word (thresholds.toml
+    [transcript.whisper-score.lang.es]); English leaves them to the margin ("Go lift" stays go_left)."""
+    heard = _scored("a la izquierda", "Ma Yes, Lien", 0.0)
+    heard = Recognition(heard.hypotheses, heard.engine, "es", heard.audio_s, heard.extra, transcript=heard.transcript)
+    decision = get_matcher("phonetic").decide(heard, [ES])
+    assert decision.action is None and "is in no go_left phrase" in decision.reason, decision
+    said = Recognition(heard.hypotheses, heard.engine, "es", heard.audio_s, heard.extra, transcript="A la izquierda")
+    assert get_matcher("phonetic").decide(said, [ES]).action == "go_left"
+    assert get_matcher("phonetic").decide(_scored("go left", "Go lift", 0.0), [EN]).action == "go_left"

@@ -208,12 +208,16 @@ class Matcher:
         (``word_max_distance``) and is no word of the dictionary at all means other speech; so does
         speech that went on past the engine's free pass (``transcript_cut``: "Go right and then ..."). A heard
         word that is by itself a command of another class ("Go right, go left") means two commands: neither.
+        A transcript no longer than the command is left to the margin, unless ``judge_all_words`` is set
+        (Spanish: "Ma Yes, Lien" for "me oyes bien" came within the margin of "a la izquierda").
         """
-        limit = transcript_limits(recognition.engine, self.thresholds_path).get("word_max_distance")
+        limits = transcript_limits(recognition.engine, self.thresholds_path, recognition.lang)
+        limit = limits.get("word_max_distance")
         if limit is not None and recognition.extra.get("transcript_cut"):
             return f"not a command: heard '{recognition.transcript}…', and the speech went on"
         heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
-        if limit is None or len(heard.split()) <= len(best.phrase.key.split()):
+        short = len(heard.split()) <= len(best.phrase.key.split())
+        if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.key.split()}
         vocabulary = {w for p in best.dictionary.phrases for w in p.key.split()}

@@ -70,8 +70,13 @@ def evidence_limits(engine: str | None, path: Path = THRESHOLDS_PATH, lang: str 
     return limits
 
 
-def transcript_limits(engine: str | None, path: Path = THRESHOLDS_PATH) -> dict[str, float]:
-    """Limits on the engine's own transcript (``Recognition.transcript``); empty when none are set."""
+def transcript_limits(engine: str | None, path: Path = THRESHOLDS_PATH, lang: str | None = None) -> dict[str, float]:
+    """Limits on the engine's own transcript (``Recognition.transcript``); empty when none are set.
+    ``[transcript.<engine>.lang.<lang>]`` overrides them for one language, as for the evidence."""
     if not engine:
         return {}
-    return _numbers(load_thresholds(path).get("transcript", {}).get(engine, {}), f"transcript.{engine}")
+    table = load_thresholds(path).get("transcript", {}).get(engine, {})
+    limits = _numbers(table, f"transcript.{engine}")
+    if lang:
+        limits.update(_numbers(table.get("lang", {}).get(lang, {}), f"transcript.{engine}.lang.{lang}"))
+    return limits
