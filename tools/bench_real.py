@@ -14,8 +14,9 @@ recognition and the time from the end of the audio to the result in
 ``tune`` replays the cache through the real matcher with candidate thresholds (temporary copies of
 ``gcs_voice/understanding/thresholds.toml``): on clean dev speech, non-command words and sentences acted on
 must stay within HALF their 2 % target (a setting that only just fits dev would not hold on test) and wrong
-actions within 1 %, there and one grid step looser in any threshold; among those, the best "right - 3 x wrong - 2 x acted on non-commands" over clean,
-kitchen 20 dB and kitchen 12 dB wins (at 12 dB no setting meets the targets on dev).
+actions within 1 %, there and one grid step looser in any threshold; among those, the best
+"right - 3 x wrong - 2 x acted on non-commands" over clean, kitchen 20 dB and kitchen 12 dB wins (at 12 dB
+no setting meets the targets on dev).
 ``report`` writes the tables with the count behind every percentage.
 """
 
@@ -175,15 +176,14 @@ class Counts:
 
 def count(recs: list[Recording], condition: str, cache: dict[str, dict], matcher) -> Counts:
     en = [load_language("en")]
-    classes = {normalize_text(p.text): p.action for p in en[0].phrases}
     c = Counts()
     for rec in recs:
         row = cache.get(_key(rec, condition))
         if row is None:
             continue
         recognition = _recognition(row)
-        top = classes.get(normalize_text(recognition.best.text)) if recognition.best else None
-        c.add(rec.kind, rec.action, matcher.decide(recognition, en).action, top)
+        top = en[0].by_key.get(normalize_text(recognition.best.text)) if recognition.best else None
+        c.add(rec.kind, rec.action, matcher.decide(recognition, en).action, top.action if top else None)
     return c
 
 

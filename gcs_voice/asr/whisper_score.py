@@ -32,6 +32,7 @@ import numpy as np
 
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
+from gcs_voice.domain.text import normalize_text
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
            "only_repeats", "preselect", "score_utterance"]
@@ -219,16 +220,12 @@ def _mean(logprobs: np.ndarray) -> float:
 RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean": lambda lp: _mean(lp)}
 
 
-def _plain(text: str) -> str:
-    return " ".join("".join(ch if ch.isalnum() else " " for ch in text.lower()).split())
-
-
 def _text_nearness(forms: PhraseForms, heard: str) -> list[float]:
     """How near each form's words are to the greedy transcript (rapidfuzz ratio, 0-100): a tie-break only."""
     from rapidfuzz import fuzz
 
-    heard = _plain(heard)
-    return [fuzz.ratio(_plain(phrase.text), heard) for phrase in forms.phrases]
+    heard = normalize_text(heard, fold=False)
+    return [fuzz.ratio(normalize_text(phrase.text, fold=False), heard) for phrase in forms.phrases]
 
 
 def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndarray], heard: str,
