@@ -29,6 +29,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
+from rapidfuzz import fuzz
 
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
@@ -222,8 +223,6 @@ RANK_BY = {"sum": lambda lp: float(np.sum(lp)) if lp.size else -math.inf, "mean"
 
 def _text_nearness(forms: PhraseForms, heard: str) -> list[float]:
     """How near each form's words are to the greedy transcript (rapidfuzz ratio, 0-100): a tie-break only."""
-    from rapidfuzz import fuzz
-
     heard = normalize_text(heard, fold=False)
     return [fuzz.ratio(normalize_text(phrase.text, fold=False), heard) for phrase in forms.phrases]
 
