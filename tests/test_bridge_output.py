@@ -159,3 +159,46 @@ def test_a_speculated_decision_is_the_decision_and_only_for_its_own_audio(tmp_pa
     assert heard()["speculated"] is False and other.action == "stop"
     pipeline.hear(up, "microphone", utterance_end_t=4.0)  # a guess is used once at most
     assert heard()["speculated"] is False
+
+
+def test_a_stale_guess_is_given_up_between_the_engine_stages(tmp_path: Path, whisper_model_dir: Path) -> None:
+    """A speculation whose utterance went on stops after the encoder (its check is asked, it raises nothing
+    out of ``speculate``, no guess is kept), and the real utterance is then decided afresh, as usual."""
+    import queue
+
+    from gcs_voice.asr.registry import load_recognizer
+    from gcs_voice.domain.dictionary import load_language
+    from gcs_voice.session import listen
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+    from tests.asr_speech import pcm_of
+
+    en = load_language("en")
+    bus = EventBus()
+    pipeline = listen.VoicePipeline(load_recognizer("whisper", [en], model=str(whisper_model_dir)),
+                                    get_matcher(DEFAULT_MATCHER), [en], "en", bus, realtime=False)
+    up = pcm_of("go up", tmp_path)
+    asked: list[bool] = []
+
+    def stale() -> bool:
+        asked.append(True)
+        return True
+
+    pipeline.speculate(up, stale=stale)
+    assert asked == [True] and pipeline.abandoned == 1  # asked once: after the encoder, and it stopped there
+    decision = pipeline.hear(up, "microphone", utterance_end_t=1.0)
+    heard = [e for e in bus.history if e.kind == "heard"][-1].data
+    assert heard["speculated"] is False and decision.action == "up"
+
+    asked.clear()
+    pipeline.speculate(up, stale=lambda: asked.append(False) or False)  # still the utterance: runs through
+    assert len(asked) == 2 and pipeline.abandoned == 1  # after the encoder and after the free pass
+    assert pipeline.hear(up, "microphone", utterance_end_t=2.0) == decision
+    assert [e for e in bus.history if e.kind == "heard"][-1].data["speculated"] is True
+
+    # what makes a guess stale in run_microphone: anything queued after it but its own utterance
+    heard_q: queue.Queue = queue.Queue()
+    assert not listen._superseded(heard_q, up)
+    heard_q.put((up, 2.0))
+    assert not listen._superseded(heard_q, up)
+    heard_q.put((up + b"\0\0", 3.0))
+    assert listen._superseded(heard_q, up)

@@ -8,12 +8,13 @@ matcher needs them to decide and, above all, to reject.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
 
 from gcs_voice.audio import SAMPLE_RATE  # every engine takes 16 kHz, mono, signed 16-bit LE PCM
 
-__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer", "BufferedStream"]
+__all__ = ["SAMPLE_RATE", "Hypothesis", "Recognition", "RecognizerStream", "Recognizer", "BufferedStream", "Abandoned"]
 
 
 @dataclass(frozen=True)
@@ -71,13 +72,28 @@ class Recognizer(Protocol):
     def start_stream(self, lang: str | None = None) -> RecognizerStream: ...
 
 
+class Abandoned(Exception):
+    """``finish()`` stopped early because the stream's ``abandon`` check said its result is no longer wanted."""
+
+
 class BufferedStream:
     """Base for engines that decode a whole utterance at ``finish`` (Whisper, PocketSphinx): ``accept``
-    only buffers; a subclass's ``finish`` calls ``_take()`` to end the stream and get the PCM."""
+    only buffers; a subclass's ``finish`` calls ``_take()`` to end the stream and get the PCM.
+
+    ``abandon``, when set, is asked between an engine's costly stages whether to go on: a recognition
+    begun on a guess (speech that then went on) gives the CPU back instead of delaying the real one.
+    A ``finish`` that stops raises :class:`Abandoned`; one that runs to the end is unchanged.
+    """
 
     def __init__(self) -> None:
         self._pcm = bytearray()
         self._done = False
+        self.abandon: Callable[[], bool] | None = None
+
+    def check_abandon(self) -> None:
+        """Raise :class:`Abandoned` if the result is no longer wanted (engines call it between stages)."""
+        if self.abandon is not None and self.abandon():
+            raise Abandoned("recognition abandoned: its utterance went on")
 
     def accept(self, pcm: bytes) -> None:
         if self._done:

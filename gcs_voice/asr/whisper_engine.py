@@ -16,7 +16,7 @@ Rejection evidence in ``Recognition.extra``: ``no_speech_prob``, ``avg_logprob``
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 
 import numpy as np
 
@@ -114,7 +114,9 @@ class WhisperRecognizer:
         lang = max(self.languages, key=lambda code: probs.get(code, 0.0))
         return lang, probs.get(lang, 0.0), sum(probs.get(code, 0.0) for code in self.languages)
 
-    def decode(self, pcm: bytes, fixed_lang: str | None) -> Recognition:
+    def decode(self, pcm: bytes, fixed_lang: str | None, between_stages: Callable[[], None] | None = None) -> Recognition:
+        """Recognise one utterance; ``between_stages`` is called after the encoder (scoring mode), where it may
+        raise to give up (:meth:`BufferedStream.check_abandon`)."""
         from faster_whisper.audio import pad_or_trim
         from faster_whisper.transcribe import get_compression_ratio
 
@@ -123,7 +125,7 @@ class WhisperRecognizer:
         if audio.size < SAMPLE_RATE // 10:  # under 0.1 s: nothing to decode
             return Recognition((), self.name, fixed_lang, audio_s, {})
         if self.mode == "score":
-            return self._decode_scored(audio, fixed_lang, audio_s)
+            return self._decode_scored(audio, fixed_lang, audio_s, between_stages)
         features = self.model.feature_extractor(audio)
         encoder_output = self.model.encode(pad_or_trim(features))
         lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
@@ -211,14 +213,18 @@ class WhisperRecognizer:
             self._forms[lang] = phrase_forms(self.tokenizer(lang), self.dictionaries[lang])
         return self._forms[lang]
 
-    def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float) -> Recognition:
+    def _decode_scored(self, audio: np.ndarray, fixed_lang: str | None, audio_s: float,
+                       between_stages: Callable[[], None] | None = None) -> Recognition:
         """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""
         s = self.settings
         encoded, frames = self.encode_short(audio)
+        if between_stages is not None:
+            between_stages()  # the decoder passes cost about as much as the encoder: skip them if unwanted
         candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
         scored = {code: score_utterance(self.model.model, self.tokenizer(code), self.phrase_forms(code), encoded,
                                         frames, int(s.get("score_extra_tokens", 3)), int(s.get("score_top_k", 8)),
-                                        str(s.get("score_rank_by", "mean")))
+                                        str(s.get("score_rank_by", "mean")), str(s.get("score_context", "")),
+                                        between_stages)
                   for code in candidates}
         # --lang auto: the best phrase over the loaded languages picks the language (Whisper's language
         # detection on a short window calls espeak-ng Spanish English).
@@ -276,4 +282,4 @@ class WhisperStream(BufferedStream):
 
     def finish(self) -> Recognition:
         max_samples = 30 * SAMPLE_RATE  # one Whisper window; a command is far shorter
-        return self._rec.decode(self._take()[: max_samples * 2], self._lang)
+        return self._rec.decode(self._take()[: max_samples * 2], self._lang, self.check_abandon)

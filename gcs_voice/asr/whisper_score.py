@@ -25,7 +25,7 @@ memoria" heard perfectly does not become "derecha"). One threshold on it (``min_
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -256,16 +256,21 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
 
 
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
-                    extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean") -> PhraseScores:
+                    extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean",
+                    context: str = "", between_stages: Callable[[], None] | None = None) -> PhraseScores:
     """Judge one encoded utterance against one dictionary (see the module docstring).
 
     ``model`` is the ``ctranslate2.models.Whisper``; ``num_frames`` the mel frames that were encoded;
-    ``rank_by`` "sum" or "mean" (see the module docstring).
+    ``rank_by`` "sum" or "mean" (see the module docstring); ``context``, when given, is the text Whisper is
+    told came before (its "previous text" prompt), for the free pass and the phrases alike;
+    ``between_stages`` is called after the free pass, before the phrases are scored (it may raise to give up).
     Greedy decoding and the fixed batch keep it deterministic: the same audio gives the same scores.
     """
     import ctranslate2
 
     prompt = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
+    if context.strip():
+        prompt = [tokenizer.sot_prev] + tokenizer.encode(" " + context.strip()) + prompt
     # The free pass has room for the longest phrase (or not-command) of the dictionary, its period and
     # ``extra_tokens`` more ("Okay, go to the right."): a transcript that runs out of it said more than a command.
     max_new_tokens = max((len(t) for t in forms.tokens), default=0) + extra_tokens
@@ -275,6 +280,8 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     greedy = list(free.sequences_ids[0])
     steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0]]
     pieces = [tokenizer.decode([t]) for t in greedy]
+    if between_stages is not None:
+        between_stages()
     chosen = preselect(forms, greedy, steps, "".join(pieces), top_k)
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []

@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gcs_voice.asr.base import Abandoned, BufferedStream
 from gcs_voice.audio.sources import pcm_to_chunks
 from gcs_voice.session.bridge import Bridge, Request
 from gcs_voice.understanding.decision import Decision
@@ -130,22 +131,29 @@ class VoicePipeline:
         self.bus = bus
         #: (PCM, its recognition) decided while the end-of-utterance silence ran out (``speculate``)
         self._speculated: tuple[bytes, Recognition] | None = None
+        #: speculations given up half-way because their utterance went on (``speculate(stale=...)``)
+        self.abandoned = 0
 
-    def speculate(self, pcm: bytes) -> None:
+    def speculate(self, pcm: bytes, stale: Callable[[], bool] | None = None) -> None:
         """Recognise a tentative utterance now; ``hear`` uses the result if the utterance ends as it is.
 
         Every engine decides the same PCM the same way (the engine conformance test), so the early
-        result is the one ``hear`` would compute: only the time the silence took is saved.
+        result is the one ``hear`` would compute: only the time the silence took is saved. ``stale`` is
+        asked between the engine's stages (engines that have them: :class:`BufferedStream`): when it says
+        the guess is no longer the utterance, the rest of the work is skipped, so it delays the real one less.
         """
         self._speculated = None
-        recognition = self._recognise(pcm)
-        self._speculated = (pcm, recognition)
-
-    def _recognise(self, pcm: bytes) -> Recognition:
         stream = self.recognizer.start_stream(self.lang)
+        if stale is not None and isinstance(stream, BufferedStream):
+            stream.abandon = stale
         for chunk in pcm_to_chunks(pcm):
             stream.accept(chunk.pcm)
-        return stream.finish()
+        try:
+            recognition = stream.finish()
+        except Abandoned:
+            self.abandoned += 1
+            return
+        self._speculated = (pcm, recognition)
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
              recorded: bool = False, bridge: Bridge | None = None) -> Decision:
@@ -294,10 +302,18 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             raise item
         if isinstance(item, _Tentative):
             if heard.empty():  # a real utterance waiting comes first; a stale guess is skipped
-                pipeline.speculate(item.pcm)
+                pipeline.speculate(item.pcm, stale=lambda pcm=item.pcm: _superseded(heard, pcm))
             continue
         pcm, end_t = item
         pipeline.submit(bridge, pcm, "microphone", end_t)
+
+
+def _superseded(heard: queue.Queue, pcm: bytes) -> bool:
+    """Whether something newer than the guess ``pcm`` waits: another guess, an utterance that is not this
+    one (speech went on), or the end of the source."""
+    with heard.mutex:
+        waiting = list(heard.queue)
+    return any(not (isinstance(item, tuple) and item[0] == pcm) for item in waiting)
 
 
 def start_voice_thread(bridge: Bridge, target: Callable[..., None], *args: Any) -> threading.Thread:
