@@ -230,21 +230,14 @@ def objective(c: Counts) -> int:
     return c.right - WRONG_COST * c.wrong - ACTED_COST * c.others_acted
 
 
-def tune(engine: str, write: bool) -> int:
-    """Sweep the engine's thresholds on dev.
-
-    The clean conditions (clean, kitchen 20 dB) must keep non-command words and sentences acted on
-    within half their target on dev (see DEV_SAFETY) and wrong actions within the target, at the setting
-    and at each setting one grid step looser in one key (so that one dev file more or less, as a rebuilt
-    cache on another machine gives, does not carry the choice out of the limits); among those settings,
-    the one with the best :func:`objective` summed over every tuned condition (12 dB included, where no
-    setting meets the targets) wins.
-    """
+def sweep(cache: dict[str, dict], dev: list[Recording], engine: str = "whisper-score"
+          ) -> tuple[list[tuple[dict[str, float], bool, int, dict[str, Counts]]], list[str]]:
+    """Every grid setting of the engine's thresholds on dev: (values, within the limits, objective, counts per
+    condition), and the conditions used. "Within the limits" holds at the setting and one grid step looser in
+    any key (see :func:`tune`)."""
     import itertools
 
     table, grid = TUNED[engine]
-    cache = load_cache(engine)
-    dev = load_recordings(split="dev")
     conditions = [c for c in TUNE_CONDITIONS if any(_key(r, c) in cache for r in dev)]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -261,10 +254,6 @@ def tune(engine: str, write: bool) -> int:
                 ok &= (c.words_acted <= acted_limit * c.words and c.sentences_acted <= acted_limit * c.sentences
                        and c.wrong <= wrong_limit * c.commands)
             rows.append((values, ok, sum(objective(c) for c in per.values()), per))
-    print(f"dev split, conditions {', '.join(conditions)}; clean limits on dev: non-command words and sentences acted "
-          f"on <= {100 * LIMITS['clean'][0] * DEV_SAFETY:g} % each, wrong <= {100 * LIMITS['clean'][1]:g} %, "
-          f"also one grid step looser in any key; "
-          f"objective = right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on")
     # One grid step looser in any key must stay within the limits too: a setting on the edge of the limits
     # would leave them when one dev file moved (a rebuilt cache on another machine moves a few).
     ok_at = {tuple(r[0].values()): r[1] for r in rows}
@@ -280,7 +269,32 @@ def tune(engine: str, write: bool) -> int:
                 out.append(tuple(combo))
         return out
 
-    rows = [(values, ok and all(ok_at[n] for n in looser(values)), score, per) for values, ok, score, per in rows]
+    return [(values, ok and all(ok_at[n] for n in looser(values)), score, per)
+            for values, ok, score, per in rows], conditions
+
+
+def best_setting(rows: list[tuple[dict[str, float], bool, int, dict[str, Counts]]]):
+    """The feasible row with the best objective (ties: the strictest setting), or None."""
+    feasible = [r for r in rows if r[1]]
+    return max(feasible, key=lambda r: (r[2], *r[0].values())) if feasible else None
+
+
+def tune(engine: str, write: bool) -> int:
+    """Sweep the engine's thresholds on dev.
+
+    The clean conditions (clean, kitchen 20 dB) must keep non-command words and sentences acted on
+    within half their target on dev (see DEV_SAFETY) and wrong actions within the target, at the setting
+    and at each setting one grid step looser in one key (so that one dev file more or less, as a rebuilt
+    cache on another machine gives, does not carry the choice out of the limits); among those settings,
+    the one with the best :func:`objective` summed over every tuned condition (12 dB included, where no
+    setting meets the targets) wins.
+    """
+    table, grid = TUNED[engine]
+    rows, conditions = sweep(load_cache(engine), load_recordings(split="dev"), engine)
+    print(f"dev split, conditions {', '.join(conditions)}; clean limits on dev: non-command words and sentences acted "
+          f"on <= {100 * LIMITS['clean'][0] * DEV_SAFETY:g} % each, wrong <= {100 * LIMITS['clean'][1]:g} %, "
+          f"also one grid step looser in any key; "
+          f"objective = right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on")
     feasible = sorted((r for r in rows if r[1]), key=lambda r: r[2], reverse=True)
 
     def cells(per: dict[str, Counts]) -> str:
@@ -290,23 +304,29 @@ def tune(engine: str, write: bool) -> int:
     for values, ok, score, per in feasible[:10]:
         print(f"  {values}  objective {score}: {cells(per)}")
     # the thresholds in thresholds.toml now, for comparison (a rebuilt cache can move them out of the limits)
-    shipped = load_thresholds()
-    for key in table.split("."):
-        shipped = shipped.get(key, {})
-    now = next((r for r in rows if r[0] == {k: shipped.get(k) for k in grid}), None)
+    now = next((r for r in rows if r[0] == shipped_setting(engine)), None)
     if now is not None:
         print(f"shipped now: {now[0]}  objective {now[2]}, {'within' if now[1] else 'OUTSIDE'} the clean limits: "
               f"{cells(now[3])}")
-    if not feasible:
+    best = best_setting(rows)
+    if best is None:
         print("no setting meets the clean limits on dev", file=sys.stderr)
         return 1
-    best = max(feasible, key=lambda r: (r[2], *r[0].values()))  # ties: the strictest setting
     print(f"chosen: [{table}] " + ", ".join(f"{k} = {v}" for k, v in best[0].items()))
     if write:
         THRESHOLDS_PATH.write_text(_with_thresholds(table, best[0], CACHE_DIR, "chosen").read_text(encoding="utf-8"),
                                    encoding="utf-8")
         print(f"written to {THRESHOLDS_PATH.relative_to(REPO)}")
     return 0
+
+
+def shipped_setting(engine: str = "whisper-score") -> dict[str, float | None]:
+    """The tuned thresholds as thresholds.toml has them now."""
+    table, grid = TUNED[engine]
+    shipped = load_thresholds()
+    for key in table.split("."):
+        shipped = shipped.get(key, {})
+    return {k: shipped.get(k) for k in grid}
 
 
 # -- report -------------------------------------------------------------------------------------------
@@ -343,6 +363,21 @@ def report(engines: list[str]) -> str:
     return "\n".join(lines) + "\n"
 
 
+#: what each variant tag of the variants table was made with (``recognise --split dev --conditions
+#: clean,kitchen20,kitchen12 --set ... --tag TAG``); a cache with another tag is listed without a note
+VARIANTS = {
+    "w6": ("score_window_s=6", "a 6 s encoder window instead of 8 (a quarter less encoder time)"),
+    "w5": ("score_window_s=5", "a 5 s encoder window"),
+    "w4": ("score_window_s=4", "a 4 s encoder window (half the encoder time)"),
+    "k4": ("score_top_k=4", "4 phrases teacher-forced instead of 8"),
+    "w6k4": ("score_window_s=6 --set score_top_k=4", "both"),
+    "w5k4": ("score_window_s=5 --set score_top_k=4", "both"),
+    "ctx": ("'score_context=Up. Down. Left. Right. Forward. Back. Turn left. Turn right. Stop. Take off. Land.'",
+            "Whisper told that the commands came before (its previous-text prompt), for the free pass and the "
+            "phrases alike"),
+}
+
+
 def variants_report(engine: str = "whisper-score") -> str | None:
     """The variants table (dev split) from every ``<engine>-<tag>`` cache, or None when there is none: the
     variant caches are not in git, so a machine without them keeps the table it has."""
@@ -351,27 +386,29 @@ def variants_report(engine: str = "whisper-score") -> str | None:
     if not variants or not cache:
         return None
     matcher = get_matcher(MATCHER)
-    lines = [f"# Variants tried ({engine}, dev split, shipped thresholds; clean unless named)", "",
+    shipped = shipped_setting(engine)
+    lines = [f"# Variants tried ({engine}, dev split)", "",
              "Generated by `python -m tools.bench_real report` when variant caches exist (out/bench/real/"
-             f"{engine}-TAG.jsonl); corpus and conditions as in [real.md](real.md), dev split (speakers the "
-             "held-out report never uses)."]
-    dev = load_recordings(split="dev")
+             f"{engine}-TAG.jsonl; not in git: they are made on the machine that reports them); corpus and "
+             "conditions as in [real.md](real.md), dev split (speakers the held-out report never uses). "
+             "`shipped` is the shipped configuration. Each variant was made with `python -m tools.bench_real "
+             "recognise --split dev --conditions clean,kitchen20,kitchen12 --set KEY=VALUE --tag TAG`:", ""]
+    for path in variants:
+        tag = path.stem.removeprefix(f"{engine}-")
+        if tag in VARIANTS:
+            lines.append(f"- `{tag}`: `--set {VARIANTS[tag][0]}`: {VARIANTS[tag][1]}.")
+        else:
+            lines.append(f"- `{tag}`: (no note)")
     lines += ["",
-              "Each made with `python -m tools.bench_real recognise --split dev --conditions clean[,kitchen12] --set KEY=VALUE "
-              "--tag TAG`: `w8` = `--set score_crop_s=0` (the decoder attends to the whole 8 s window), `w30` = "
-              "`--set score_window_s=30 --set score_crop_s=0` (Whisper's own 30 s window), `w8cN` = "
-              "`--set score_crop_s=N` (the decoder attends to the utterance and N s after it; shipped: 2), "
-              "`w4` = `--set score_window_s=4` (a 4 s encoder window: half the encoder time), "
-              "`k4` = `--set score_top_k=4` (4 phrases teacher-forced instead of 8), "
-              "`sum` = `--set score_rank_by=sum` (phrases ranked by the log-probability of the whole phrase "
-              "instead of per token; its decisions here use the shipped thresholds, chosen for `mean`). "
-              "w8, w30 and w8cN were recognised with the dictionary of their day (without `not_commands`); "
-              "`shipped` is the configuration of real.md (the shipped engine settings and thresholds).", "",
-              "| variant | best phrase of the right class | commands right | wrong | non-commands acted on | "
-              "best phrase of the right class, kitchen 12 dB |",
-              "| --- | --- | --- | --- | --- | --- |"]
-    en = load_language("en")
-    cls_of = {ph.text: ph.action for ph in en.phrases}
+              f"Columns: the class of the best-scored phrase (before any rejection) right, clean and at kitchen 12 dB; "
+              f"the decisions on clean speech with the shipped thresholds ({', '.join(f'{k} {v}' for k, v in shipped.items())}); "
+              f"tune's objective (right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on, over "
+              f"{', '.join(TUNE_CONDITIONS)}) with the shipped thresholds, and with the thresholds `tune` would choose "
+              "for the variant itself (`python -m tools.bench_real tune --tag TAG`).", "",
+              "| variant | right class ranked first | commands right | wrong | non-commands acted on | "
+              "right class ranked first, kitchen 12 dB | objective, shipped thresholds | objective, re-chosen thresholds |",
+              "| --- | --- | --- | --- | --- | --- | --- | --- |"]
+    dev = load_recordings(split="dev")
     for path in [None, *variants]:
         if path is None:
             tag, rows = "shipped", cache
@@ -382,15 +419,15 @@ def variants_report(engine: str = "whisper-score") -> str | None:
                 row = json.loads(line)
                 rows[row["key"]] = row
         c = count(dev, "clean", rows, matcher)
-
-        def top(cond: str) -> tuple[int, int]:
-            said = [(r, rows.get(_key(r, cond))) for r in dev if r.kind == "command"]
-            said = [(r, row) for r, row in said if row is not None]
-            return sum(1 for r, row in said if row["hypotheses"]
-                       and cls_of.get(row["hypotheses"][0][0]) == r.action), len(said)
-
-        lines.append(f"| {tag} | {pct(*top('clean'))} | {pct(c.right, c.commands)} | {pct(c.wrong, c.commands)} | "
-                     f"{pct(c.others_acted, c.others)} | {pct(*top('kitchen12'))} |")
+        c12 = count(dev, "kitchen12", rows, matcher)
+        settings, _ = sweep(rows, dev, engine)
+        at_shipped = next((r for r in settings if r[0] == shipped), None)
+        best = best_setting(settings)
+        best_cell = (f"{best[2]} ({', '.join(f'{k} {v}' for k, v in best[0].items())})" if best
+                     else "no setting within the limits")
+        lines.append(f"| {tag} | {pct(c.ranked_first, c.commands)} | {pct(c.right, c.commands)} | "
+                     f"{pct(c.wrong, c.commands)} | {pct(c.others_acted, c.others)} | "
+                     f"{pct(c12.ranked_first, c12.commands)} | {at_shipped[2] if at_shipped else '–'} | {best_cell} |")
     lines.append("")
     return "\n".join(lines) + "\n"
 
