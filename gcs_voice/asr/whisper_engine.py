@@ -115,8 +115,8 @@ class WhisperRecognizer:
         return lang, probs.get(lang, 0.0), sum(probs.get(code, 0.0) for code in self.languages)
 
     def decode(self, pcm: bytes, fixed_lang: str | None, between_stages: Callable[[], None] | None = None) -> Recognition:
-        """Recognise one utterance; ``between_stages`` is called after the encoder (scoring mode), where it may
-        raise to give up (:meth:`BufferedStream.check_abandon`)."""
+        """Recognise one utterance; ``between_stages`` is called after the encoder and after the free pass
+        (scoring mode), where it may raise to give up (:meth:`BufferedStream.check_abandon`)."""
         from faster_whisper.audio import pad_or_trim
         from faster_whisper.transcribe import get_compression_ratio
 
