@@ -267,3 +267,31 @@ def test_forms_that_tie_on_the_greedy_path_are_chosen_by_what_whisper_wrote(whis
     steps[0] = flat.copy()
     steps[0][firsts[alone]] = -0.1
     assert preselect(forms, greedy, steps, heard, top_k=2)[0] == alone
+
+
+def test_a_command_whisper_wrote_word_for_word_is_always_scored(whisper_model_dir) -> None:
+    """When the greedy pass knows other forms better (here: their first tokens are near-certain), the form
+    whose words ARE the transcript must still be scored: espeak-ng "desarma los motores" was heard word for
+    word and then judged against "desarmar motores" only."""
+    import tokenizers
+    from faster_whisper.tokenizer import Tokenizer
+
+    from gcs_voice.asr.whisper_score import phrase_forms, preselect
+
+    hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
+    tokenizer = Tokenizer(hf, True, task="transcribe", language="es")
+    forms = phrase_forms(tokenizer, load_language("es"))
+    heard = " Desarma los motores"
+    greedy = list(tokenizer.encode(heard))
+    flat = np.full(hf.get_vocab_size(), -math.log(hf.get_vocab_size()))
+    steps = [flat.copy() for _ in greedy]
+    exact_firsts = {toks[0] for toks, phrase in zip(forms.tokens, forms.phrases) if phrase.text == "desarma los motores"}
+    for toks in forms.tokens:
+        if toks[0] not in exact_firsts:
+            steps[0][toks[0]] = -0.1
+    chosen = preselect(forms, greedy, steps, heard, top_k=2)
+    assert "desarma los motores" in {forms.phrases[i].text for i in chosen}, [forms.phrases[i].text for i in chosen]
+    assert len(chosen) == 2
+    # the same evidence with a transcript that is no phrase leaves it out: the guarantee did it, not the ranking
+    others = preselect(forms, greedy, steps, " Muestra la memoria", top_k=2)
+    assert "desarma los motores" not in {forms.phrases[i].text for i in others}

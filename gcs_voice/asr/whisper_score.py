@@ -237,7 +237,7 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     derecha" and "muévete a la izquierda" when the transcript already differs at "muévete"), and
     dictionary order would then decide which class is scored at all; so ties go to the form whose words
     are nearest what Whisper wrote (``heard``: "¡Wenete a la izquier"), then to dictionary order (same
-    audio, same phrases scored).
+    audio, same phrases scored). A command whose words are exactly what Whisper wrote is always among them.
     """
     known_mean = np.full(len(forms.tokens), -np.inf)
     for i, toks in enumerate(forms.tokens):
@@ -252,7 +252,15 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
             known_mean[i] = sum(known) / len(known)
     nearness = _text_nearness(forms, heard)
     order = sorted(range(len(forms.tokens)), key=lambda i: (-known_mean[i], -nearness[i], i))
-    return order[:max(1, top_k)]
+    chosen = order[:max(1, top_k)]
+    # A command Whisper wrote word for word is always scored: when its tokens differ from the greedy
+    # pass's ("Desarma los motores" written with other pieces), the path evidence ranks it low, and
+    # with few forms scored it was left out (espeak-ng "desarma los motores", python -m tools.bench_spanish).
+    said = normalize_text(heard)
+    exact = [i for i in order if forms.phrases[i].action != NOT_A_COMMAND and normalize_text(forms.phrases[i].text) == said]
+    if exact and not set(exact) & set(chosen):
+        chosen[-1] = exact[0]
+    return chosen
 
 
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
