@@ -242,22 +242,29 @@ def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, wi
     assert float(np.max(np.abs(ours - whisper))) <= 2.5e-7
 
 
-def test_forms_that_tie_on_the_greedy_path_are_chosen_by_what_whisper_wrote(whisper_model_dir) -> None:
-    """When Whisper's transcript leaves every form at its first token ("¡Wenete a la izquier" for "muévete a
-    la izquierda"), all forms sharing that token tie; dictionary order (derecha before izquierda) must not
-    decide which class gets scored. A form the greedy pass knows better still comes first."""
+def _spanish_preselect_case(whisper_model_dir, heard: str):
+    """Spanish phrase forms and a greedy pass that wrote ``heard`` with every step flat (no evidence)."""
     import tokenizers
     from faster_whisper.tokenizer import Tokenizer
 
-    from gcs_voice.asr.whisper_score import phrase_forms, preselect
+    from gcs_voice.asr.whisper_score import phrase_forms
 
     hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
     tokenizer = Tokenizer(hf, True, task="transcribe", language="es")
     forms = phrase_forms(tokenizer, load_language("es"))
-    heard = " ¡Wenete a la izquier"
     greedy = list(tokenizer.encode(heard))
     flat = np.full(hf.get_vocab_size(), -math.log(hf.get_vocab_size()))
-    steps = [flat.copy() for _ in greedy]
+    return forms, greedy, flat, [flat.copy() for _ in greedy]
+
+
+def test_forms_that_tie_on_the_greedy_path_are_chosen_by_what_whisper_wrote(whisper_model_dir) -> None:
+    """When Whisper's transcript leaves every form at its first token ("¡Wenete a la izquier" for "muévete a
+    la izquierda"), all forms sharing that token tie; dictionary order (derecha before izquierda) must not
+    decide which class gets scored. A form the greedy pass knows better still comes first."""
+    from gcs_voice.asr.whisper_score import preselect
+
+    heard = " ¡Wenete a la izquier"
+    forms, greedy, flat, steps = _spanish_preselect_case(whisper_model_dir, heard)
     chosen = preselect(forms, greedy, steps, heard, top_k=2)
     assert {forms.phrases[i].text for i in chosen} == {"muévete a la izquierda"}, [forms.phrases[i].text for i in chosen]
     assert forms.phrases[chosen[0]].action == "go_left"
@@ -273,18 +280,10 @@ def test_a_command_whisper_wrote_word_for_word_is_always_scored(whisper_model_di
     """When the greedy pass knows other forms better (here: their first tokens are near-certain), the form
     whose words ARE the transcript must still be scored: espeak-ng "desarma los motores" was heard word for
     word and then judged against "desarmar motores" only."""
-    import tokenizers
-    from faster_whisper.tokenizer import Tokenizer
+    from gcs_voice.asr.whisper_score import preselect
 
-    from gcs_voice.asr.whisper_score import phrase_forms, preselect
-
-    hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
-    tokenizer = Tokenizer(hf, True, task="transcribe", language="es")
-    forms = phrase_forms(tokenizer, load_language("es"))
     heard = " Desarma los motores"
-    greedy = list(tokenizer.encode(heard))
-    flat = np.full(hf.get_vocab_size(), -math.log(hf.get_vocab_size()))
-    steps = [flat.copy() for _ in greedy]
+    forms, greedy, flat, steps = _spanish_preselect_case(whisper_model_dir, heard)
     exact_firsts = {toks[0] for toks, phrase in zip(forms.tokens, forms.phrases) if phrase.text == "desarma los motores"}
     for toks in forms.tokens:
         if toks[0] not in exact_firsts:

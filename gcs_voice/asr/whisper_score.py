@@ -257,7 +257,8 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     # pass's ("Desarma los motores" written with other pieces), the path evidence ranks it low, and
     # with few forms scored it was left out (espeak-ng "desarma los motores", python -m tools.bench_spanish).
     said = normalize_text(heard)
-    exact = [i for i in order if forms.phrases[i].action != NOT_A_COMMAND and normalize_text(forms.phrases[i].text) == said]
+    exact = [i for i in order
+             if forms.phrases[i].action != NOT_A_COMMAND and normalize_text(forms.phrases[i].text) == said]
     if exact and not set(exact) & set(chosen):
         chosen[-1] = exact[0]
     return chosen
