@@ -366,8 +366,8 @@ def report(engines: list[str]) -> str:
 #: what each variant tag of the variants table was made with (``recognise --split dev --conditions
 #: clean,kitchen20,kitchen12 --set ... --tag TAG``); a cache with another tag is listed without a note
 VARIANTS = {
-    "k8": ("score_top_k=8", "8 phrase forms teacher-forced, the shipped setting until session 11 (with the 4 of "
-           "now, the same dev decisions for less time)"),
+    "k8": ("score_top_k=8", "8 phrase forms teacher-forced, the shipped setting until session 11 (the 4 of now "
+           "decide about as many dev commands right, for less time)"),
     "w6": ("score_window_s=6 --set score_top_k=8", "a 6 s encoder window instead of 8, 8 forms"),
     "w5": ("score_window_s=5 --set score_top_k=8", "a 5 s encoder window, 8 forms"),
     "w4": ("score_window_s=4 --set score_top_k=8", "a 4 s encoder window (half the encoder time), 8 forms"),
