@@ -160,6 +160,19 @@ def test_a_loop_says_nothing_new_but_more_words_do():
     assert only_repeats([" Desarmas", " los", " motores", ".", " Des"], 4)  # out of tokens inside the loop
     more = [" Turn", " left", ",", " turn", " left", ",", " and", " take"]
     assert not only_repeats(more, first_unit_length(more))
+    went_on = [" Can", " I", " have", " a", " medium", " roast", " coffee", " with"]
+    assert not only_repeats(went_on, first_unit_length(went_on)), "words that simply went on are no loop"
+
+
+@pytest.mark.slow
+def test_speech_longer_than_any_command_scores_no_phrase(whisper_score, tmp_path):
+    """The free pass runs out of tokens on a sentence that never repeats itself: it said more than a command,
+    so no phrase is teacher-forced (the time is saved) and the decision says the speech went on."""
+    result, decision = _decide(whisper_score, pcm_of("can I have a medium roast coffee with milk and sugar please",
+                                                     tmp_path), "en")
+    assert result.extra["transcript_cut"] == 1.0, result.transcript
+    assert not result.hypotheses
+    assert decision.action is None and "went on" in decision.reason, decision
 
 
 @pytest.mark.slow

@@ -257,6 +257,10 @@ def test_speech_that_went_on_past_the_free_pass_does_nothing() -> None:
     ended = _scored("go right", "Go right", 0.0)
     ended.extra["transcript_cut"] = 0.0
     assert get_matcher("phonetic").decide(ended, [EN]).action == "go_right"
+    # the engine saw it before scoring any phrase: no hypothesis, and the same reason
+    unscored = Recognition((), "whisper-score", "en", 4.0, {"transcript_cut": 1.0}, transcript="Can I have a medium")
+    decision = get_matcher("phonetic").decide(unscored, [EN])
+    assert decision.action is None and "went on" in decision.reason, decision
 
 
 @pytest.mark.parametrize(("phrase", "transcript", "dictionary"), [

@@ -10,7 +10,9 @@ window):
    are to the transcript); only the ``top_k`` most promising are scored, since each costs a decoder
    pass over the encoder output;
 3. those phrases AND the free transcript are teacher-forced in ONE batched decoder call
-   (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio.
+   (CTranslate2 ``Whisper.align``), so all are scored by the same decoder on the same audio; unless
+   the greedy pass ran out of tokens on words that were no loop ("Can I get a medium roast with..."):
+   that speech said more than any command, and no phrase is scored.
 
 Phrases are ranked by their mean token log-probability (``rank_by = "mean"``; ``"sum"``, the probability
 Whisper gives the whole phrase, ranks the right class first more often on real speech but made no better
@@ -36,7 +38,7 @@ from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.domain.text import normalize_text
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
-           "only_repeats", "preselect", "score_utterance"]
+           "generation_length", "only_repeats", "preselect", "score_utterance"]
 
 _SPACE = "\u0120"  # byte-level BPE's space marker ("Ġ")
 #: the class of a dictionary's ``not_commands``: scored like phrases, never acted on
@@ -146,8 +148,11 @@ def first_unit_length(pieces: Sequence[str]) -> int:
 def only_repeats(pieces: Sequence[str], unit: int) -> bool:
     """Whether every word after the first ``unit`` tokens repeats a word of that unit ("Up, up, up", not
     "Turn left, turn left and take a picture"): a loop says nothing new, anything else says more. The
-    last word may be the start of one ("Desarmas los motores. Des": the pass ran out inside the loop)."""
+    last word may be the start of one ("Desarmas los motores. Des": the pass ran out inside the loop).
+    With no word after the unit there is no loop ("Can I get a medium": the words simply went on)."""
     words = [w for w in map(_word, pieces[unit:]) if w]
+    if not words:
+        return False
     said = {w for w in map(_word, pieces[:unit]) if w}
     if words and words[-1] not in said and any(w.startswith(words[-1]) for w in said):
         words = words[:-1]
@@ -166,7 +171,7 @@ class PhraseScores:
     phrase of another class (or not-command), in rank scores. ``heard_text``: the whole greedy transcript,
     or its first unit when the rest only loops over it (``free_text`` is always that first unit); ``cut``:
     the greedy pass ran out of tokens on speech that was not a loop of its first unit, so the speech went on
-    past anything a command says.
+    past anything a command says (then no phrase is scored: ``ranked`` is empty, ``free_logprob`` -inf).
     """
 
     ranked: tuple[tuple[Phrase, float], ...]
@@ -264,6 +269,17 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     return chosen
 
 
+def generation_length(prompt_length: int, new_tokens: int) -> int:
+    """The ``max_length`` with which CTranslate2's ``Whisper.generate`` may write ``new_tokens`` after a prompt.
+
+    It does not allow ``max_length - prompt_length`` new tokens but min(max_length // 2, max_length -
+    prompt_length + 1) (whisper.cc, CTranslate2 4.x: half of the text context, Whisper's own sampling
+    limit): asked for a 4-token prompt plus 8, it stopped after 6, so the free pass was shorter than meant
+    and never looked cut. A later version that allows more is cut back to ``new_tokens`` by the caller.
+    """
+    return max(2 * new_tokens, new_tokens + prompt_length - 1)
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
                     extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean",
                     context: str = "", between_stages: Callable[[], None] | None = None) -> PhraseScores:
@@ -283,20 +299,25 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # The free pass has room for the longest phrase (or not-command) of the dictionary, its period and
     # ``extra_tokens`` more ("Okay, go to the right."): a transcript that runs out of it said more than a command.
     max_new_tokens = max((len(t) for t in forms.tokens), default=0) + extra_tokens
-    free = model.generate(encoder_output, [prompt], max_length=len(prompt) + max_new_tokens, beam_size=1,
-                          return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
+    free = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), max_new_tokens),
+                          beam_size=1, return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
                           suppress_blank=True, suppress_tokens=[-1])[0]
-    greedy = list(free.sequences_ids[0])
-    steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0]]
+    greedy = list(free.sequences_ids[0])[:max_new_tokens]
+    steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0][:max_new_tokens]]
     pieces = [tokenizer.decode([t]) for t in greedy]
     if between_stages is not None:
         between_stages()
-    chosen = preselect(forms, greedy, steps, "".join(pieces), top_k)
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []
-    # Out of tokens on speech that is not a loop: it said more than the longest command.
+    # Out of tokens on speech that is not a loop: it said more than the longest command, and no phrase
+    # score could make it one, so none is computed (the decoder pass over the phrases is most of the
+    # time left; long speech is where it costs most).
     loop = only_repeats(pieces, len(unit))
     cut = len(greedy) >= max_new_tokens and not loop
+    if cut:
+        return PhraseScores((), tokenizer.decode(unit).strip(), -math.inf, float(free.no_speech_prob),
+                            heard_text=tokenizer.decode(greedy).strip(), cut=True)
+    chosen = preselect(forms, greedy, steps, "".join(pieces), top_k)
     if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):
         unit = unit + list(tokenizer.encode("."))
     else:

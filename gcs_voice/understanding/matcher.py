@@ -153,6 +153,8 @@ class Matcher:
         if not heard:
             if recognition.extra.get("out_of_grammar"):
                 return Ranking(None, None, "not a command (the recogniser heard speech outside the dictionary)")
+            if recognition.extra.get("transcript_cut"):  # the engine scored no phrase: the speech went on
+                return Ranking(None, None, _went_on_reason(recognition))
             return Ranking(None, None, "nothing heard")
         # An alternative the engine itself gives little chance is not evidence for an action.
         floor = limits["min_confidence"]
@@ -214,7 +216,7 @@ class Matcher:
         limits = transcript_limits(recognition.engine, self.thresholds_path, recognition.lang)
         limit = limits.get("word_max_distance")
         if limit is not None and recognition.extra.get("transcript_cut"):
-            return f"not a command: heard '{recognition.transcript}…', and the speech went on"
+            return _went_on_reason(recognition)
         heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
         short = len(heard.split()) <= len(best.phrase.key.split())
         if limit is None or (short and not limits.get("judge_all_words")):
@@ -268,3 +270,8 @@ class Matcher:
     ) -> Decision:
         return Decision(action=None, text=text, phrase=phrase, lang=lang, score=score, reason=reason,
                         matcher=self.name)
+
+
+def _went_on_reason(recognition: Recognition) -> str:
+    """Why speech that went on past the engine's free pass is no action."""
+    return f"not a command: heard '{recognition.transcript}…', and the speech went on"
