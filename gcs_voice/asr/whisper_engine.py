@@ -23,7 +23,8 @@ import numpy as np
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import find_whisper_model, whisper_model_hint
 from gcs_voice.asr.settings import engine_settings
-from gcs_voice.asr.whisper_score import canonical_tokens, phrase_forms, score_utterance, trim_silence
+from gcs_voice.asr.whisper_score import (canonical_tokens, generation_length, phrase_forms, score_utterance,
+                                         trim_silence)
 from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
 from gcs_voice.domain.text import normalize_text
@@ -133,7 +134,7 @@ class WhisperRecognizer:
         tokenizer = self.tokenizer(lang)
         s = self.settings
         n_best = max(1, int(s.get("beam_size", 5)))
-        max_length = len(prompt) + int(s.get("max_new_tokens", 16))
+        max_length = generation_length(len(prompt), int(s.get("max_new_tokens", 16)))
         chosen = None
         for temperature in s.get("temperature", [0.0]):
             if temperature > 0:
