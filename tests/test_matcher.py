@@ -261,6 +261,7 @@ def test_speech_that_went_on_past_the_free_pass_does_nothing() -> None:
     unscored = Recognition((), "whisper-score", "en", 4.0, {"transcript_cut": 1.0}, transcript="Can I have a medium")
     decision = get_matcher("phonetic").decide(unscored, [EN])
     assert decision.action is None and "went on" in decision.reason, decision
+    assert decision.text == "Can I have a medium", "what was heard is shown, though no phrase was scored"
 
 
 @pytest.mark.parametrize(("phrase", "transcript", "dictionary"), [

@@ -50,7 +50,9 @@ class Recognition:
 
     @property
     def text(self) -> str:
-        return self.hypotheses[0].text if self.hypotheses else ""
+        """The best hypothesis; with none, the engine's own transcript (what was heard, even when no phrase
+        was worth scoring: Whisper scores none for speech that went on past its free pass)."""
+        return self.hypotheses[0].text if self.hypotheses else self.transcript
 
 
 @runtime_checkable
