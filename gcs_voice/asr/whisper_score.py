@@ -154,7 +154,7 @@ def only_repeats(pieces: Sequence[str], unit: int) -> bool:
     if not words:
         return False
     said = {w for w in map(_word, pieces[:unit]) if w}
-    if words and words[-1] not in said and any(w.startswith(words[-1]) for w in said):
+    if words[-1] not in said and any(w.startswith(words[-1]) for w in said):
         words = words[:-1]
     return all(w in said for w in words)
 
@@ -310,8 +310,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []
     # Out of tokens on speech that is not a loop: it said more than the longest command, and no phrase
-    # score could make it one, so none is computed (the decoder pass over the phrases is most of the
-    # time left; long speech is where it costs most).
+    # score could make it one, so the batched decoder pass over the phrases is skipped.
     loop = only_repeats(pieces, len(unit))
     cut = len(greedy) >= max_new_tokens and not loop
     if cut:
