@@ -165,6 +165,16 @@ def test_a_loop_says_nothing_new_but_more_words_do():
 
 
 @pytest.mark.slow
+@pytest.mark.parametrize(("text", "action"), [("turn left please", "turn_left"), ("please stop", "stop")])
+def test_a_command_with_filler_words_acts(whisper_score, tmp_path, text, action):
+    """Whisper heard the command and a skip word ("Turn left, please"): the transcript is a way of writing the
+    command, not other speech; scored as the bare phrase, the command fell below the margin."""
+    result, decision = _decide(whisper_score, pcm_of(text, tmp_path), "en")
+    assert decision.action == action, (result.transcript, decision)
+    assert result.extra["margin"] >= 0.0
+
+
+@pytest.mark.slow
 def test_speech_longer_than_any_command_scores_no_phrase(whisper_score, tmp_path):
     """The free pass runs out of tokens on a sentence that never repeats itself: it said more than a command,
     so no phrase is teacher-forced (the time is saved) and the decision says the speech went on."""

@@ -326,7 +326,8 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     batch = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(sequences), axis=0)))
     results = model.align(batch, prompt, sequences, [num_frames] * len(sequences))
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
-    free_logprob = _mean(logprobs.pop()) if unit else -math.inf
+    free_lp = logprobs.pop() if unit else np.empty(0)
+    free_logprob = _mean(free_lp)
     if rank_by not in RANK_BY:
         raise ValueError(f"score_rank_by must be one of {', '.join(RANK_BY)}, not {rank_by!r}")
     rank = RANK_BY[rank_by]
@@ -340,6 +341,12 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
         key = id(phrase)
         if key not in best or score > best[key][1]:
             best[key] = (phrase, score, _mean(lp))
+    # Whisper wrote a command with filler words around it ("Go up, please."): its transcript is a way of
+    # writing that command, and scores as one; "Go up." alone is far less likely than what it heard.
+    written = forms.dictionary.by_key.get(forms.dictionary.strip_skip_words(normalize_text(
+        tokenizer.decode(unit[:-1])))) if unit else None
+    if written is not None and (id(written) not in best or rank(free_lp) > best[id(written)][1]):
+        best[id(written)] = (written, rank(free_lp), free_logprob)
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
