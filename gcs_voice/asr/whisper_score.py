@@ -343,12 +343,12 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
             best[key] = (phrase, score, _mean(lp))
     # Whisper wrote a command with filler words around it ("Go up, please."): its transcript is a way of
     # writing that command, and scores as one; "Go up." alone is far less likely than what it heard.
-    written = forms.dictionary.by_key.get(forms.dictionary.strip_skip_words(normalize_text(
-        tokenizer.decode(unit[:-1])))) if unit else None
+    free_text = tokenizer.decode(unit[:-1]).strip()
+    written = forms.dictionary.by_key.get(forms.dictionary.strip_skip_words(normalize_text(free_text)))
     if written is not None and (id(written) not in best or rank(free_lp) > best[id(written)][1]):
         best[id(written)] = (written, rank(free_lp), free_logprob)
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
-    return PhraseScores(ranked, tokenizer.decode(unit[:-1]).strip(), free_logprob, float(free.no_speech_prob),
+    return PhraseScores(ranked, free_text, free_logprob, float(free.no_speech_prob),
                         not_command, ordered[0][2] if ordered else None,
                         tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut)
