@@ -299,6 +299,32 @@ def test_forms_that_tie_on_the_greedy_path_are_chosen_by_what_whisper_wrote(whis
     assert preselect(forms, greedy, steps, heard, top_k=2)[0] == alone
 
 
+def test_a_command_is_scored_when_whisper_heard_something_near_the_not_commands(whisper_model_dir) -> None:
+    """A real "up" heard as "Um" put four not-commands ("on", "off", "of", "all") first on the greedy path:
+    no phrase was judged and the command read as nothing heard. One command form must always be scored,
+    with the not-commands beside it as its rivals."""
+    import tokenizers
+    from faster_whisper.tokenizer import Tokenizer
+
+    from gcs_voice.asr.whisper_score import NOT_A_COMMAND, phrase_forms, preselect
+
+    hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
+    tokenizer = Tokenizer(hf, True, task="transcribe", language="en")
+    forms = phrase_forms(tokenizer, load_language("en"))
+    heard = " Um"
+    greedy = list(tokenizer.encode(heard))
+    flat = np.full(hf.get_vocab_size(), -math.log(hf.get_vocab_size()))
+    steps = [flat.copy() for _ in greedy]
+    for toks, phrase in zip(forms.tokens, forms.phrases):
+        if phrase.action == NOT_A_COMMAND:
+            steps[0][toks[0]] = -0.1  # the greedy pass knows every not-command better than any command
+    chosen = preselect(forms, greedy, steps, heard, top_k=4)
+    kinds = [forms.phrases[i].action for i in chosen]
+    assert len(chosen) == 4
+    assert sum(k != NOT_A_COMMAND for k in kinds) == 1, kinds
+    assert sum(k == NOT_A_COMMAND for k in kinds) == 3, kinds
+
+
 def test_a_command_whisper_wrote_word_for_word_is_always_scored(whisper_model_dir) -> None:
     """When the greedy pass knows other forms better (here: their first tokens are near-certain), the form
     whose words ARE the transcript must still be scored: espeak-ng "desarma los motores" was heard word for

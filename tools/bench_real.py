@@ -486,7 +486,8 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
     others = [r for r in recs if r.kind != "command"]
     picked = [x for pair in zip(commands[::2], others[::2]) for x in pair][:n]
     gap = np.zeros(int(1.5 * 16_000), np.float32)
-    audio = np.concatenate([gap] + [x for r in picked for x in (condition_audio(r, "clean"), gap)])
+    clips = [condition_audio(r, "clean") for r in picked]
+    audio = np.concatenate([gap] + [x for clip in clips for x in (clip, gap)])
     pcm = (np.clip(audio, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     bus = EventBus()
     pipeline = listen.VoicePipeline(recognizer, get_matcher(MATCHER), [en], "en", bus)
@@ -503,8 +504,10 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
         def submit(self, request):
             return request
 
+    t0_holder = [0.0]  # when the stream's first sample was "spoken"
+
     def utterances():
-        t0 = time.time() + 0.05
+        t0 = t0_holder[0] = time.time() + 0.05
 
         def realtime():
             for chunk in pcm_to_chunks(pcm, MICROPHONE_BLOCK_S):  # blocks as the microphone gives them
@@ -524,6 +527,18 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
     heard = [e for e in bus.history if e.kind == "heard"]
     from_speech = [(e.t - (e.data["utterance_end_t"] - post_pad_s)) * 1000 for e in heard]
     from_close = [(e.t - closed[e.data["utterance_end_t"]]) * 1000 for e in heard]
+    # which file each decision was of: the one whose audio ends nearest the utterance's end
+    ends = np.cumsum([gap.size + clip.size for clip in clips]) / 16_000
+    kinds = [picked[int(np.argmin(np.abs(ends - (e.data["utterance_end_t"] - post_pad_s - t0_holder[0]))))].kind
+             for e in heard]
+
+    def row(label: str, values: list[float]) -> str:
+        if not values:
+            return ""
+        return (f"| {label} ({len(values)}) | {statistics.median(values):.0f} ms | "
+                f"{np.percentile(values, 95):.0f} ms | {max(values):.0f} ms |\n")
+    by_kind = "".join(row(f"the end of speech, {label}", [v for v, k in zip(from_speech, kinds) if k in group])
+                      for label, group in (("commands", ("command",)), ("other speech", ("word", "sentence"))))
     used = sum(1 for e in heard if e.data.get("speculated"))
     load = os.getloadavg()[0]
     label = "decided while the closing silence ran out (speculation)" if speculate else "no speculation"
@@ -536,7 +551,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
             f"Load average at the end: {load:.2f} (2 cores).\n\n"
             f"| measured from | p50 | p95 | max |\n| --- | --- | --- | --- |\n"
             f"| the end of speech (last window Silero called speech) | {statistics.median(from_speech):.0f} ms | "
-            f"{np.percentile(from_speech, 95):.0f} ms | {max(from_speech):.0f} ms |\n"
+            f"{np.percentile(from_speech, 95):.0f} ms | {max(from_speech):.0f} ms |\n{by_kind}"
             f"| the close of the utterance (after {settings.silero.min_silence_s:g} s of non-speech) | "
             f"{statistics.median(from_close):.0f} ms | {np.percentile(from_close, 95):.0f} ms | {max(from_close):.0f} ms |\n")
 

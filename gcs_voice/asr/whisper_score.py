@@ -242,7 +242,8 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     derecha" and "muévete a la izquierda" when the transcript already differs at "muévete"), and
     dictionary order would then decide which class is scored at all; so ties go to the form whose words
     are nearest what Whisper wrote (``heard``: "¡Wenete a la izquier"), then to dictionary order (same
-    audio, same phrases scored). A command whose words are exactly what Whisper wrote is always among them.
+    audio, same phrases scored). A command whose words are exactly what Whisper wrote is always among them,
+    and so is at least one command.
     """
     known_mean = np.full(len(forms.tokens), -np.inf)
     for i, toks in enumerate(forms.tokens):
@@ -266,6 +267,13 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
              if forms.phrases[i].action != NOT_A_COMMAND and normalize_text(forms.phrases[i].text) == said]
     if exact and not set(exact) & set(chosen):
         chosen[-1] = exact[0]
+    # At least one command is scored: when the greedy pass heard something near the not-commands ("Um",
+    # "Oh." for "up"), all the forms chosen were not-commands, no phrase was judged and the utterance read
+    # as nothing heard. The not-commands scored beside it still stand as its rivals (the class gap).
+    if all(forms.phrases[i].action == NOT_A_COMMAND for i in chosen):
+        command = next((i for i in order if forms.phrases[i].action != NOT_A_COMMAND), None)
+        if command is not None:
+            chosen[-1] = command
     return chosen
 
 
