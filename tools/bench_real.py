@@ -41,6 +41,7 @@ from gcs_voice.domain.dictionary import load_language
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.understanding import get_matcher
 from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
+from tools.cpu_steal import CpuSample
 from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
 REPO = Path(__file__).resolve().parent.parent
@@ -450,16 +451,17 @@ def timing(engine: str, model: str | None, n: int) -> str:
     picked = [x for pair in zip(commands[::2], others[::2]) for x in pair][:n]
     recognise_one(recognizer, condition_audio(picked[0], "clean"))  # warm-up, not counted
     times, audio_s = [], 0.0
-    for rec in picked:
-        audio = condition_audio(rec, "clean")
-        _, dt = recognise_one(recognizer, audio)
-        times.append(dt * 1000)
-        audio_s += audio.size / 16_000
+    with CpuSample() as cpu:
+        for rec in picked:
+            audio = condition_audio(rec, "clean")
+            _, dt = recognise_one(recognizer, audio)
+            times.append(dt * 1000)
+            audio_s += audio.size / 16_000
     load = os.getloadavg()[0]
     p50, p95 = statistics.median(times), float(np.percentile(times, 95))
     return (f"## Decision time, {engine}\n\n`python -m tools.bench_real timing --engine {engine} --n {n}`: {len(times)} "
             f"clean test-split files (commands and non-commands alternating), streamed in 100 ms chunks; time from "
-            f"the end of the audio to the recognition. Load average at the end: {load:.2f} (2 cores).\n\n"
+            f"the end of the audio to the recognition. Load average at the end: {load:.2f} (2 cores); {cpu.describe()}.\n\n"
             f"| p50 | p95 | max | real-time factor (decision time / audio) |\n| --- | --- | --- | --- |\n"
             f"| {p50:.0f} ms | {p95:.0f} ms | {max(times):.0f} ms | {sum(times) / 1000 / audio_s:.3f} |\n")
 
@@ -522,8 +524,9 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
             yield utt.pcm, t0 + utt.end_s
 
     voice = threading.Thread(target=listen.run_microphone, args=(pipeline, Sink(), utterances(), False, tentatives))
-    voice.start()
-    voice.join()
+    with CpuSample() as cpu:
+        voice.start()
+        voice.join()
     heard = [e for e in bus.history if e.kind == "heard"]
     from_speech = [(e.t - (e.data["utterance_end_t"] - post_pad_s)) * 1000 for e in heard]
     from_close = [(e.t - closed[e.data["utterance_end_t"]]) * 1000 for e in heard]
@@ -548,7 +551,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
             f"{MICROPHONE_BLOCK_S * 1000:.0f} ms blocks through the Silero segmenter "
             f"and `listen.run_microphone`; {len(heard)} utterances decided, {used} of them from the speculation"
             f"{f' ({pipeline.abandoned} stale speculations given up half-way)' if speculate else ''}. "
-            f"Load average at the end: {load:.2f} (2 cores).\n\n"
+            f"Load average at the end: {load:.2f} (2 cores); {cpu.describe()}.\n\n"
             f"| measured from | p50 | p95 | max |\n| --- | --- | --- | --- |\n"
             f"| the end of speech (last window Silero called speech) | {statistics.median(from_speech):.0f} ms | "
             f"{np.percentile(from_speech, 95):.0f} ms | {max(from_speech):.0f} ms |\n{by_kind}"
