@@ -511,10 +511,10 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
         def submit(self, request):
             return request
 
-    t0_holder = [0.0]  # when the stream's first sample was "spoken"
+    stream_end_s: dict[float, float] = {}  # utterance end time -> where in the stream it ended (s)
 
     def utterances():
-        t0 = t0_holder[0] = time.time() + 0.05
+        t0 = time.time() + 0.05
 
         def realtime():
             for chunk in pcm_to_chunks(pcm, MICROPHONE_BLOCK_S):  # blocks as the microphone gives them
@@ -526,6 +526,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
         for utt in segment_utterances(realtime(), settings,
                                       on_tentative=(lambda u: tentatives(u.pcm)) if tentatives else None):
             closed[t0 + utt.end_s] = time.time()
+            stream_end_s[t0 + utt.end_s] = utt.end_s
             yield utt.pcm, t0 + utt.end_s
 
     voice = threading.Thread(target=listen.run_microphone, args=(pipeline, Sink(), utterances(), False, tentatives))
@@ -537,8 +538,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
     from_close = [(e.t - closed[e.data["utterance_end_t"]]) * 1000 for e in heard]
     # which file each decision was of: the one whose audio ends nearest the utterance's end
     ends = np.cumsum([gap.size + clip.size for clip in clips]) / 16_000
-    kinds = [picked[int(np.argmin(np.abs(ends - (e.data["utterance_end_t"] - post_pad_s - t0_holder[0]))))].kind
-             for e in heard]
+    kinds = [picked[int(np.argmin(np.abs(ends - stream_end_s[e.data["utterance_end_t"]])))].kind for e in heard]
 
     def row(label: str, values: list[float]) -> str:
         if not values:
