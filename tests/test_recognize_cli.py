@@ -114,6 +114,19 @@ def test_whisper_auto_language(wavs, whisper_model_dir, real_speech_dir):
 
 
 @pytest.mark.slow
+def test_whisper_lines_say_what_whisper_wrote(whisper_model_dir, real_speech_dir):
+    """A real "up" that Whisper wrote as "Um": the line must say it heard "Um", not the dictionary phrase it
+    scored best ("ahead"), which read as if Whisper had heard a command and chosen not to act."""
+    real = str(real_speech_dir / "en/up/up_b4877f8e_nohash_0.wav")
+    args = ("--engine", "whisper", "--model", str(whisper_model_dir))
+    row, = _rows(recognize(real, *args, "--json"))
+    assert row["action"] is None and row["transcript"] and row["transcript"] != row["text"], row
+    proc = recognize(real, *args)
+    assert proc.returncode == 0, proc.stderr.decode()
+    assert f"heard '{row['transcript']}' -> -" in proc.stdout.decode(), proc.stdout.decode()
+
+
+@pytest.mark.slow
 def test_spanish_sentences_with_a_command_word_in_passing_do_nothing(whisper_model_dir, tmp_path):
     """Issue 10 item 7: ordinary Spanish with "para", "derecha", "sube" in passing, through the default
     engine (Whisper, mode score) and matcher, must not move the drone; a Spanish command still does.

@@ -54,6 +54,13 @@ class Recognition:
         was worth scoring: Whisper scores none for speech that went on past its free pass)."""
         return self.hypotheses[0].text if self.hypotheses else self.transcript
 
+    @property
+    def heard(self) -> str:
+        """What the engine heard, for people to read: its own transcript where its hypotheses are the
+        dictionary phrases it scored (Whisper wrote "Um" while the best-scored phrase was "ahead"; showing
+        "ahead" as heard misled), else the best hypothesis."""
+        return self.transcript or self.text
+
 
 @runtime_checkable
 class RecognizerStream(Protocol):

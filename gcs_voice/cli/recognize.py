@@ -87,7 +87,8 @@ def _format_line(row: dict) -> str:
     phrase = f"'{row['phrase']}'" if row["phrase"] else "-"
     where = f" [{row['start_s']:.2f}-{row['end_s']:.2f} s]" if "start_s" in row else ""
     reason = f" ({row['reason']})" if row["reason"] and not row["action"] else ""
-    return (f"{row['file']}{where}: heard '{row['text']}' -> {phrase} -> {action}{reason} "
+    heard = row.get("transcript") or row["text"]  # what the engine wrote, not the phrase it scored best
+    return (f"{row['file']}{where}: heard '{heard}' -> {phrase} -> {action}{reason} "
             f"score {row['score']:.2f} lang {row['lang'] or '-'} {row['ms']:.0f} ms")
 
 

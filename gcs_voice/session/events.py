@@ -22,7 +22,8 @@ KINDS: dict[str, str] = {
     "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t",
     "thinking": "an utterance ended and its decision is pending: source, utterance_end_t",
     "late": "a decision came more than LATE_S after its utterance ended: late_s, action, source",
-    "heard": "what the recogniser heard: text, alternatives, engine, lang, audio_s, source, recognize_ms",
+    "heard": "what the recogniser heard: text (the best hypothesis), transcript (the engine's own words when its "
+             "hypotheses are scored phrases, else empty), alternatives, engine, lang, audio_s, source, recognize_ms",
     "rejected": "no action: text, phrase (nearest), score, reason, matcher",
     "command": "an action sent to the vehicle: action, phrase, score, origin (voice|key|script), setpoint",
     "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",

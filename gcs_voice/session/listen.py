@@ -189,10 +189,10 @@ class VoicePipeline:
         heard_t = time.time()
         self.last_end_t = end_t
         alternatives = [h.text for h in recognition.hypotheses[:5]]
-        self.bus.emit("heard", f"heard {recognition.text!r} ({recognition.engine}"
+        self.bus.emit("heard", f"heard {recognition.heard!r} ({recognition.engine}"
                       f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
-                      text=recognition.text, alternatives=alternatives, engine=recognition.engine,
-                      lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
+                      text=recognition.text, transcript=recognition.transcript, alternatives=alternatives,
+                      engine=recognition.engine, lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
                       utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1),
                       speculated=early is not None)
         decision = self.matcher.decide(recognition, self.dictionaries)

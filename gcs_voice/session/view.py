@@ -94,7 +94,8 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
     voice.add_column(style="dim")
     voice.add_column()
     if heard:
-        voice.add_row("heard", Text(f"\"{heard.get('text', '')}\"  ({heard.get('engine', '?')}, "
+        words = heard.get("transcript") or heard.get("text", "")  # Whisper's own words, not the phrase it scored
+        voice.add_row("heard", Text(f"\"{words}\"  ({heard.get('engine', '?')}, "
                                     f"{heard.get('lang') or '?'})", style="bold"))
     if command:
         said = f"{command['phrase']} -> " if command.get("phrase") else ""
