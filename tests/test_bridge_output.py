@@ -89,48 +89,43 @@ def test_view_says_what_the_vehicle_waits_for() -> None:
     assert armed["ready"] is None
 
 
-def test_view_says_thinking_while_a_decision_is_pending() -> None:
+def _shown(state: ViewState) -> str:
+    """The live view as text, as a 110-column terminal would show it."""
     from rich.console import Console
 
+    console = Console(width=110, record=True, file=io.StringIO())
+    console.print(render(state, {"link": "ok"}))
+    return console.export_text()
+
+
+def test_view_says_thinking_while_a_decision_is_pending() -> None:
     bus, state = EventBus(), ViewState()
     bus.subscribe(state)
 
-    def shown() -> str:
-        console = Console(width=110, record=True, file=io.StringIO())
-        console.print(render(state, {"link": "ok"}))
-        return console.export_text()
-
     bus.emit("thinking", "thinking… (1.0 s from stop.wav)", source="stop.wav", utterance_end_t=1.0)
-    assert "thinking…" in shown()
+    assert "thinking…" in _shown(state)
     bus.emit("spotted", "stop word 'stop' heard: stopping now", word="stop")
     bus.emit("heard", "heard 'stop' (whisper, en)", text="stop", engine="whisper", lang="en")
-    text = shown()
+    text = _shown(state)
     assert "thinking…" not in text and "stop word 'stop' heard" in text
 
 
 def test_the_view_shows_the_words_whisper_wrote_not_the_phrase_it_scored() -> None:
     """Whisper scoring ranks dictionary phrases; what it heard is its own transcript ("Um" for a real "up",
     scored best as "ahead"). The view and the heard line show the transcript; other engines their text."""
-    from rich.console import Console
-
     from gcs_voice.asr.base import Hypothesis, Recognition
 
     bus, state = EventBus(), ViewState()
     bus.subscribe(state)
 
-    def shown() -> str:
-        console = Console(width=110, record=True, file=io.StringIO())
-        console.print(render(state, {"link": "ok"}))
-        return console.export_text()
-
     scored = Recognition((Hypothesis("ahead", 0.01, -4.2),), "whisper-score", "en", 1.0, transcript="Um")
     assert scored.heard == "Um" and scored.text == "ahead"
     bus.emit("heard", "heard 'Um'", text=scored.text, transcript=scored.transcript, engine="whisper-score", lang="en")
-    assert '"Um"' in shown() and "ahead" not in shown()
+    assert '"Um"' in _shown(state) and "ahead" not in _shown(state)
     plain = Recognition((Hypothesis("go up", 0.9),), "sphinx", "en", 1.0)
     assert plain.heard == "go up"
     bus.emit("heard", "heard 'go up'", text=plain.text, transcript=plain.transcript, engine="sphinx", lang="en")
-    assert '"go up"' in shown()
+    assert '"go up"' in _shown(state)
 
 
 def test_a_decision_later_than_late_s_is_said(tmp_path: Path, monkeypatch) -> None:
