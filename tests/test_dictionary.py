@@ -62,6 +62,8 @@ def _write(tmp_path: Path, text: str) -> Path:
         ('language = "xx"\nnot_commands = ["four", 4]\n[phrases]\nup = ["rise"]\n', "'not_commands' must be a list"),
         ('language = "xx"\nnot_commands = ["Rise"]\n[phrases]\nup = ["rise"]\n', "not_commands 'Rise' are also phrases"),
         ('language = "xx"\nnot_commands = ["go"]\n[phrases]\nup = ["go up"]\n', "not_commands 'go' begins the phrase 'go up'"),
+        ('language = "xx"\nskip_words = ["now"]\n[phrases]\nup = ["rise"]\ndown = ["rise now"]\n',
+         "phrase 'rise now' ('down') is 'rise' ('up') once its skip words are removed"),
     ],
 )
 def test_malformed_dictionary_names_file_and_phrase(tmp_path: Path, body: str, message: str) -> None:

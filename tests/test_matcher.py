@@ -61,6 +61,16 @@ def test_exact_phrases_match_in_every_matcher(name: str, text: str, action: str,
     assert d.matcher == name
 
 
+@pytest.mark.parametrize("name", ALL)
+@pytest.mark.parametrize(("text", "action"), [("land the drone", "land"), ("Arm the drone.", "arm"),
+                                              ("disarm the drone please", "disarm")])
+def test_a_phrase_with_a_skip_word_in_it_matches_itself(name: str, text: str, action: str) -> None:
+    """"drone" is a skip word and a word of "land the drone": heard exactly, that phrase used to be only
+    near ("land", score 0.67) or too far ("arm the drone" rejected) once the heard text lost "drone"."""
+    d = get_matcher(name).decide(heard(text), [EN])
+    assert (d.action, d.score) == (action, pytest.approx(1.0)), d.reason
+
+
 def test_levenshtein_tolerates_small_misrecognitions() -> None:
     m = get_matcher("levenshtein")
     # the paper's example: nearest is "go to the left" (0.21), but "rotate left" (0.36) is within the

@@ -41,11 +41,19 @@ AUTO_LANGUAGES: tuple[str, ...] = ("en", "es")
 
 @dataclass(frozen=True)
 class Phrase:
-    """One dictionary phrase: as written (for grammars and display) and normalised (for matching)."""
+    """One dictionary phrase: as written (for grammars and display) and normalised (for matching).
+
+    ``match_key`` is ``key`` without the dictionary's skip words: a heard transcript loses them before it
+    is matched, so the phrase must too ("land the drone", heard exactly, is "land the" on both sides)."""
 
     text: str
     key: str
     action: str
+    match_key: str = ""
+
+    def __post_init__(self) -> None:
+        if not self.match_key:
+            object.__setattr__(self, "match_key", self.key)
 
 
 @dataclass(frozen=True)
@@ -57,6 +65,7 @@ class Dictionary:
     path: Path
     phrases: tuple[Phrase, ...]
     skip_words: tuple[str, ...] = ()
+    #: (also under its ``match_key``, the text a heard transcript is looked up with once its skip words are gone)
     by_key: dict[str, Phrase] = field(default_factory=dict, compare=False, repr=False)
     #: words people say near a drone that sound like commands ("four", "off"): a recogniser that weighs
     #: alternatives scores them as rivals of the phrases, and no action follows when one is as likely
@@ -80,10 +89,7 @@ class Dictionary:
 
     def strip_skip_words(self, normalised_text: str) -> str:
         """Drop filler words ("please", "drone") from an already-normalised transcript."""
-        text = f" {normalised_text} "
-        for w in self.skip_words:
-            text = text.replace(f" {w} ", " ")
-        return " ".join(text.split())
+        return _strip(normalised_text, self.skip_words)
 
 
 def dictionaries_dir() -> Path:
@@ -146,6 +152,7 @@ def load_dictionary(path: str | Path) -> Dictionary:
 
     phrases: list[Phrase] = []
     by_key: dict[str, Phrase] = {}
+    skip_keys = tuple(normalize_text(w) for w in skip)
     for action, items in table.items():
         if action not in ACTIONS:
             raise DictionaryError(
@@ -163,9 +170,16 @@ def load_dictionary(path: str | Path) -> Dictionary:
                 other = by_key[key]
                 where = "twice under" if other.action == action else f"under {other.action!r} and"
                 raise DictionaryError(f"{path}: phrase {text!r} is listed {where} {action!r}")
-            phrase = Phrase(text=text, key=key, action=action)
+            phrase = Phrase(text=text, key=key, action=action, match_key=_strip(key, skip_keys) or key)
             by_key[key] = phrase
             phrases.append(phrase)
+
+    # a heard transcript is matched without its skip words: two classes must not become one text then
+    for phrase in phrases:
+        other = by_key.setdefault(phrase.match_key, phrase)
+        if other.action != phrase.action:
+            raise DictionaryError(f"{path}: phrase {phrase.text!r} ({phrase.action!r}) is {other.text!r} "
+                                  f"({other.action!r}) once its skip words are removed")
 
     clash = [w for w in others if normalize_text(w) in by_key]
     if clash:
@@ -180,7 +194,14 @@ def load_dictionary(path: str | Path) -> Dictionary:
         name=name,
         path=path,
         phrases=tuple(phrases),
-        skip_words=tuple(normalize_text(w) for w in skip),
+        skip_words=skip_keys,
         by_key=by_key,
         not_commands=tuple(others),
     )
+
+
+def _strip(normalised_text: str, skip_words: tuple[str, ...]) -> str:
+    text = f" {normalised_text} "
+    for w in skip_words:
+        text = text.replace(f" {w} ", " ")
+    return " ".join(text.split())

@@ -14,7 +14,7 @@ class ExactMatcher(Matcher):
     name = "exact"
 
     def distance(self, heard: str, phrase: Phrase, dictionary: Dictionary) -> float:
-        return 0.0 if heard == phrase.key else 1.0
+        return 0.0 if heard == phrase.match_key else 1.0
 
     def not_a_command_reason(self, best: Candidate, max_distance: float) -> str:
         return f"'{best.text}' is not a command (no phrase matches it exactly)"

@@ -25,4 +25,4 @@ class LevenshteinMatcher(Matcher):
     name = "levenshtein"
 
     def distance(self, heard: str, phrase: Phrase, dictionary: Dictionary) -> float:
-        return Levenshtein.normalized_distance(heard, phrase.key)
+        return Levenshtein.normalized_distance(heard, phrase.match_key)

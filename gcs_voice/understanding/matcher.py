@@ -218,13 +218,13 @@ class Matcher:
         if limit is not None and recognition.extra.get("transcript_cut"):
             return _went_on_reason(recognition)
         heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
-        short = len(heard.split()) <= len(best.phrase.key.split())
+        short = len(heard.split()) <= len(best.phrase.match_key.split())
         if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
-        words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.key.split()}
-        vocabulary = {w for p in best.dictionary.phrases for w in p.key.split()}
-        commands = {p.key: p.action for p in best.dictionary.phrases
-                    if " " not in p.key and p.action != best.phrase.action}
+        words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.match_key.split()}
+        vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()}
+        commands = {p.match_key: p.action for p in best.dictionary.phrases
+                    if " " not in p.match_key and p.action != best.phrase.action}
         self.prepare([best.dictionary])
 
         def fits(word: str) -> bool:

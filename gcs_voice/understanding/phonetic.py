@@ -74,9 +74,9 @@ class PhoneticMatcher(Matcher):
         for d in dictionaries:
             voice = self.voice(d)
             for p in d.phrases:
-                if (voice, p.key) not in self._phrase_codes:
-                    tokens = phoneme_tokens(p.key, voice)
-                    self._phrase_codes[(voice, p.key)] = (*_encode(tokens), len(tokens))
+                if (voice, p.match_key) not in self._phrase_codes:
+                    tokens = phoneme_tokens(p.match_key, voice)
+                    self._phrase_codes[(voice, p.match_key)] = (*_encode(tokens), len(tokens))
 
     def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
         voice = self.voice(dictionary)
@@ -86,7 +86,7 @@ class PhoneticMatcher(Matcher):
         voice = self.voice(dictionary)
         heard_tokens = phoneme_tokens(heard, voice)
         eh, ch = _encode(heard_tokens)
-        ep, cp, n = self._phrase_codes[(voice, phrase.key)]
+        ep, cp, n = self._phrase_codes[(voice, phrase.match_key)]
         longest = max(len(heard_tokens), n)
         if longest == 0:
             return 0.0
