@@ -25,8 +25,8 @@ def parts() -> None:
 
 def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Path) -> None:
     out_of_domain = speech(tmp_path, "open the window")
-    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("hover"), speech(tmp_path, "turn right"),
-            demo_wav("go_forward"), demo_wav("move_down")]
+    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("halt"), speech(tmp_path, "turn right"),
+            demo_wav("go_forward"), demo_wav("go_down")]
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         result = run_fly(sim.connection, wavs, tmp_path, gap_s=2.5, hold_s=5.0)
     assert result.returncode == 0, result.stderr + result.stdout[-2000:]
