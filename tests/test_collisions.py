@@ -66,7 +66,7 @@ def test_demo_summary_counts_only_what_was_done() -> None:
         {"t": 0.0, "kind": "heard", "text": "take off", "utterance_end_t": 1.0},
         {"t": 0.1, "kind": "command", "action": "take_off", "utterance_end_t": 1.0},
         {"t": 3.0, "kind": "flight", "what": "take_off", "ok": True, "utterance_end_t": 1.0},
-        {"t": 4.0, "kind": "heard", "text": "go forward", "utterance_end_t": 4.0},
+        {"t": 4.0, "kind": "heard", "text": "go forward", "transcript": "Go farward.", "utterance_end_t": 4.0},
         {"t": 4.1, "kind": "command", "action": "go_forward", "utterance_end_t": 4.0},
         {"t": 5.0, "kind": "heard", "text": "land", "utterance_end_t": 5.0},
         {"t": 5.1, "kind": "refused", "action": "land", "reason": "the vehicle is disarmed: nothing to land",
@@ -75,6 +75,7 @@ def test_demo_summary_counts_only_what_was_done() -> None:
     lines, good = step_summary(steps, events)
     assert good == 2
     assert lines[0].endswith(" ok") and lines[1].endswith(" ok") and "NOT DONE: the vehicle is disarmed" in lines[2]
+    assert "heard 'Go farward.'" in lines[1]  # the words Whisper wrote, not the phrase it scored best
     events[2] = {**events[2], "ok": False, "detail": "take off: timed out"}
     lines, good = step_summary(steps, events)
     assert good == 1 and "FAILED: take off: timed out" in lines[0]

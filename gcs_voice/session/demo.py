@@ -104,6 +104,11 @@ def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Voic
     return None, notes, f"{lang}: no recogniser"
 
 
+def _words(heard: dict | None) -> str:
+    """What the engine wrote (Whisper's transcript), else its best hypothesis, as the session's heard line shows."""
+    return (heard or {}).get("transcript") or (heard or {}).get("text", "-")
+
+
 def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]:
     """One line per step: said -> heard -> action -> done?; and how many were heard *and done* as intended.
 
@@ -136,7 +141,7 @@ def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], 
         else:
             verdict = "ok"
         good += verdict == "ok"
-        lines.append(f"  said {step.text!r:22} heard {(h or {}).get('text', '-')!r:24} -> {got or 'no action':11} "
+        lines.append(f"  said {step.text!r:22} heard {_words(h)!r:24} -> {got or 'no action':11} "
                      f"{verdict}")
     return lines, good
 
