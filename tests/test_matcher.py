@@ -290,6 +290,10 @@ def test_two_commands_in_one_utterance_do_nothing(phrase: str, transcript: str, 
 def test_a_command_whisper_wrote_as_two_words_still_acts() -> None:
     """Whisper splits a word it does not know ("de tenerse" for "detenerse"): joined, it is the command."""
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse", 0.0), [ES]).action == "stop"
+    # "clock" alone is near enough "clockwise" to pass, and then "wise" was left over: the nearer reading wins
+    assert get_matcher("phonetic").decide(_scored("turn clockwise", "Turn clock wise.", 0.0), [EN]).action == "turn_right"
+    # a real word after a command is not joined to it: "right here" is not "go right"
+    assert get_matcher("phonetic").decide(_scored("right", "Right here", 0.0), [EN]).action is None
     # joining is no loophole: the joined pair must itself be a word of the class
     assert get_matcher("phonetic").decide(_scored("detenerse", "de tenerse en casa", 0.0), [ES]).action is None
 

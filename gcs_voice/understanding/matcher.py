@@ -227,8 +227,10 @@ class Matcher:
                     if " " not in p.match_key and p.action != best.phrase.action}
         self.prepare([best.dictionary])
 
-        def fits(word: str) -> bool:
-            return word in vocabulary or any(self.word_distance(word, w, best.dictionary) <= limit for w in words)
+        def distance(word: str) -> float:  # to the nearest word of the class; 0 for any dictionary word
+            if word in vocabulary:
+                return 0.0
+            return min((self.word_distance(word, w, best.dictionary) for w in words), default=1.0)
 
         heard_words = heard.split()
         second = next((w for w in heard_words if w not in words and w in commands), None)
@@ -237,10 +239,12 @@ class Matcher:
         i = 0
         while i < len(heard_words):
             word = heard_words[i]
-            if fits(word):
+            alone = distance(word)
+            joined = distance(word + heard_words[i + 1]) if i + 1 < len(heard_words) else 1.0
+            if joined <= limit and joined < alone:
+                i += 2  # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise")
+            elif alone <= limit:
                 i += 1
-            elif i + 1 < len(heard_words) and fits(word + heard_words[i + 1]):
-                i += 2  # Whisper split one word in two ("de tenerse" for "detenerse")
             else:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
