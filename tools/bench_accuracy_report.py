@@ -11,7 +11,7 @@ import numpy as np
 
 from tools.bench_accuracy_data import (
     BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, fresh_cache, is_near, recognition,
-    score,
+    score, voice_kind,
 )
 from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS, load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
@@ -115,6 +115,7 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
                             (near_n if is_near(it) else fa_n).add(it.truth, dec[it.key])
                     lines.append(f"| {m} | " + " | ".join(cells) + f" | {_fa(fa_n)} | {_fa(near_n)} |")
                 lines.append("")
+        lines += _by_voice(cached, decided[DEFAULT_MATCHER], langs)
         real = [it for it in cached if it.split == "real"]
         if real:
             lines += ["Real voices (../shared/speech, 75 commands of 5 classes + 20 non-command words; "
@@ -153,6 +154,30 @@ def report(engines: list[str], matchers: list[str], items: list[Item]) -> None:
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(head + BEGIN + "\n" + "\n".join(lines) + "\n" + END + tail, encoding="utf-8")
     print(f"wrote {DOC}")
+
+
+def _by_voice(cached: list[Item], decided: dict[str, str], langs: list[str]) -> list[str]:
+    """The default matcher's table split by kind of voice, for a language read by more than one kind: the natural
+    voice is nearer to the people the product is for than espeak-ng's formant voices."""
+    lines: list[str] = []
+    noises = PAPER_NOISES + MIXED_NOISES
+    for lang in langs:
+        mine = [it for it in cached if it.lang == lang and it.split == "test"]
+        kinds = sorted({voice_kind(it) for it in mine})
+        if len(kinds) < 2:
+            continue
+        lines += [f"{lang} by kind of voice, {DEFAULT_MATCHER}:", "",
+                  "| voice | " + " | ".join(noises) + " | non-commands acted on |", "|---" * (len(noises) + 2) + "|"]
+        for kind in kinds:
+            sel = [it for it in mine if voice_kind(it) == kind]
+            others = Score()
+            for it in sel:
+                if it.truth == "none" and it.key in decided:
+                    others.add(it.truth, decided[it.key])
+            cells = [_cell(score(sel, decided, noise=n)) for n in noises]
+            lines.append(f"| {kind} | " + " | ".join(cells) + f" | {_fa(others)} |")
+        lines.append("")
+    return lines
 
 
 def _previous_sections() -> dict[str, tuple[list[str], str]]:
