@@ -43,6 +43,19 @@ def test_out_of_domain_speech_is_not_forced_into_a_command(grammar, tmp_path, sa
     assert result.extra["out_of_grammar"] == 1.0
 
 
+def test_words_that_sound_like_commands_are_garbage(grammar, tmp_path):
+    """The dictionary's not_commands join the garbage branch (engines.toml garbage_not_commands): "four" was
+    flown forward; real single words like it were PocketSphinx's most frequent false actions."""
+    from gcs_voice.asr.sphinx_engine import SphinxRecognizer
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+
+    four = pcm_of("four", tmp_path)
+    assert "four" in grammar.garbage
+    assert get_matcher(DEFAULT_MATCHER).decide(_recognise(grammar, four), [EN]).action is None
+    without = SphinxRecognizer([EN], settings={"garbage_not_commands": False})
+    assert get_matcher(DEFAULT_MATCHER).decide(_recognise(without, four), [EN]).action == "go_forward"
+
+
 @pytest.mark.parametrize("wpm", [120, pytest.param(150, marks=pytest.mark.xfail(strict=True, reason=(
     "open (issue 10 item 8): exact digital silence sends it to garbage; dither_lsb = 1 fixes it but loses "
     "zero-padded 'turn right' / 'move forward', so the dither ships off"))), 175])
@@ -98,11 +111,12 @@ def test_real_recordings(grammar, real_speech_dir):
     right = sum(actions[r.path] == r.action for r in commands)
     wrong = [(r.path, actions[r.path]) for r in commands if actions[r.path] not in (None, r.action)]
     acted = [(r.path, actions[r.path]) for r in others if actions[r.path] is not None]
-    # measured (docs/bench/sphinx_real.md, phonetic): 87/128 right, 0 wrong, 14/110 non-commands acted on
+    # measured (docs/bench/sphinx_real.md, phonetic): 72/128 right, 0 wrong, 3/110 non-commands acted on
+    # (87, 0 and 14 before session 14 added the dictionary's not_commands to the garbage words)
     assert len(commands) == 128 and len(others) == 110
-    assert right >= 87, f"{right}/{len(commands)} commands right"
+    assert right >= 72, f"{right}/{len(commands)} commands right"
     assert len(wrong) <= 0, wrong
-    assert len(acted) <= 14, acted
+    assert len(acted) <= 3, acted
 
 
 def test_free_mode_gives_open_vocabulary_alternatives(tmp_path):

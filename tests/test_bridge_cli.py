@@ -37,7 +37,7 @@ def test_no_vehicle_is_one_line_exit_2_as_logged_and_leaves_no_files(tmp_path: P
 
     port = free_udp_port()
     proc = _fly("--connect", f"udpin:127.0.0.1:{port}", "--wait", "1", "--engine", "sphinx", "--say",
-                str(demo_wav("halt")), "--log-name", "s", "--json", tmp_path=tmp_path)
+                str(demo_wav("hold")), "--log-name", "s", "--json", tmp_path=tmp_path)
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("gcs-voice: error: no vehicle heard") and proc.stderr.count("\n") == 1
     end = [json.loads(line) for line in proc.stdout.splitlines() if '"phase": "end"' in line]
@@ -93,7 +93,7 @@ def test_kill_while_waiting_for_the_vehicle_exits_143_and_leaves_no_files(tmp_pa
 
     port = free_udp_port()
     proc = subprocess.Popen([sys.executable, "-m", "gcs_voice", "--connect", f"udpin:127.0.0.1:{port}", "--wait", "120",
-                             "--engine", "sphinx", "--say", str(demo_wav("halt")), "--headless", "--json",
+                             "--engine", "sphinx", "--say", str(demo_wav("hold")), "--headless", "--json",
                              "--log-dir", str(tmp_path)], cwd=REPO, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                             text=True)
     try:
@@ -121,7 +121,7 @@ def test_a_refused_takeoff_ends_the_session_at_once(tmp_path: Path) -> None:
     config.write_text("[link]\narm_timeout_s = 2.0\narm_retry_s = 0.5\n")
     with ScriptedVehicle(autopilot="ardupilot", arm_refusals=10_000) as vehicle:
         proc = _fly("--connect", vehicle.connection, "--wait", "10", "--engine", "sphinx", "--say",
-                    str(demo_wav("halt")), "--takeoff", "1.5", "--config", str(config), "--json",
+                    str(demo_wav("hold")), "--takeoff", "1.5", "--config", str(config), "--json",
                     "--log-name", "s", tmp_path=tmp_path)
     assert proc.returncode == 1, proc.stdout[-2000:] + proc.stderr
     events = [json.loads(line) for line in proc.stdout.splitlines() if line.startswith("{")]

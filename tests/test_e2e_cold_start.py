@@ -33,7 +33,7 @@ def parts() -> None:
 
 @pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
 def test_spoken_flight_from_a_cold_start(autopilot: str, tmp_path: Path) -> None:
-    wavs = [demo_wav("go_forward"), demo_wav("halt"), demo_wav("land_the_drone")]
+    wavs = [demo_wav("go_forward"), demo_wav("hold"), demo_wav("land_the_drone")]
     sim = BundledSim(autopilot=autopilot, room="open_field", log_path=tmp_path / "sim.log",
                      extra_args=["--cold-start", "--boot-scale", BOOT_SCALE[autopilot]])
     # --wait: the simulator starts only now, and may take long to load beside other work

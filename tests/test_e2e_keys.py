@@ -38,7 +38,7 @@ def test_keys_in_the_live_view(tmp_path: Path) -> None:
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         master, slave = pty.openpty()
         cmd = [sys.executable, "-m", "gcs_voice", "--connect", sim.connection, "--engine", "sphinx",
-               "--say", str(demo_wav("halt")), "--hold", "60", "--log-dir", str(tmp_path), "--log-name", "keys"]
+               "--say", str(demo_wav("hold")), "--hold", "60", "--log-dir", str(tmp_path), "--log-name", "keys"]
         proc = subprocess.Popen(cmd, cwd=REPO, stdin=slave, stdout=slave, stderr=slave,
                                 env={**os.environ, "COLUMNS": "100", "LINES": "40", "TERM": "xterm"})
         os.close(slave)

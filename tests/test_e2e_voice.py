@@ -25,7 +25,7 @@ def parts() -> None:
 
 def test_voice_flight_moves_turns_stops_and_lands_on_the_floor_rule(tmp_path: Path) -> None:
     out_of_domain = speech(tmp_path, "open the window")
-    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("halt"), speech(tmp_path, "turn right"),
+    wavs = [out_of_domain, demo_wav("go_forward"), demo_wav("hold"), speech(tmp_path, "turn right"),
             demo_wav("go_forward"), demo_wav("go_down")]
     with BundledSim(autopilot="ardupilot", speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         result = run_fly(sim.connection, wavs, tmp_path, gap_s=2.5, hold_s=5.0)

@@ -53,8 +53,9 @@ COMMON_100 = (
     "other than then now look only come its over think also back after use two how our work first well "
     "way even new want because any these give day most us"
 ).split()
-#: Recogniser settings tried: (label, overrides of [sphinx]).
-GARBAGE_LISTS = {"engines.toml": None, "common100": COMMON_100}
+#: Recogniser settings tried: label -> overrides of [sphinx] in engines.toml.
+GARBAGE_LISTS: dict[str, dict] = {"engines.toml": {}, "common100": {"garbage_words": list(COMMON_100)},
+                                  "no_not_commands": {"garbage_not_commands": False}}
 WEIGHTS = (0.001, 0.01, 0.1, 1.0)
 FLOORS = (0.0, 0.3, 0.5, 0.6, 0.7, 0.8, 0.9)
 
@@ -80,9 +81,7 @@ def setting_label(garbage: str, weight: float) -> str:
 
 def recognise_all(speech: Path, rows: list[Recording], garbage: str, weight: float) -> dict[Path, Recognition]:
     """Recognitions of every recording under one setting, cached by setting (keyed by path under ``speech``)."""
-    overrides: dict = {"garbage_weight": weight}
-    if GARBAGE_LISTS[garbage] is not None:
-        overrides["garbage_words"] = list(GARBAGE_LISTS[garbage])
+    overrides: dict = {"garbage_weight": weight, **GARBAGE_LISTS[garbage]}
     settings = {**engine_settings("sphinx"), **overrides}
     digest = hashlib.sha1(json.dumps([FRONT_END, settings], sort_keys=True).encode()).hexdigest()[:12]
     path = CACHE / f"{digest}.json"

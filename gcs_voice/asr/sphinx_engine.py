@@ -60,6 +60,8 @@ class SphinxRecognizer:
         except Exception as exc:  # pocketsphinx raises RuntimeError with no detail
             raise ModelError(f"cannot load the PocketSphinx model in {model_dir}: {exc}") from None
         self.phrases = [normalize_text(p.text, fold=False) for d in dictionaries for p in d.phrases]
+        #: words people say near a drone that sound like commands ("four", "seven"): garbage, when asked for
+        self.not_commands = [normalize_text(w, fold=False) for d in dictionaries for w in d.not_commands]
         self.missing_words = tuple(sorted({w for p in self.phrases for w in p.split()
                                            if self.decoder.lookup_word(w) is None}))
         if self.missing_words:
@@ -95,7 +97,11 @@ class SphinxRecognizer:
         usable = [p for p in dict.fromkeys(self.phrases) if not set(p.split()) & set(self.missing_words)]
         if not usable:
             raise ModelError("sphinx: no dictionary phrase can be pronounced with the English model")
-        self.garbage = tuple(w for w in self.settings["garbage_words"]
+        words = list(self.settings["garbage_words"])
+        if self.settings.get("garbage_not_commands", False):
+            kept_out = set(self.settings.get("garbage_not_commands_except", ()))
+            words += [w for w in self.not_commands if " " not in w and w not in kept_out]
+        self.garbage = tuple(w for w in dict.fromkeys(words)
                              if w not in vocabulary and self.decoder.lookup_word(w) is not None)
         commands = " | ".join(" ".join(_jsgf_token(w) for w in p.split()) for p in usable)
         lines = ["#JSGF V1.0;", "grammar gcsvoice;", f"<command> = {commands};"]
