@@ -34,15 +34,17 @@ from gcs_voice.session.listen import ScriptStep
 from gcs_voice.session.session_log import read_session_log
 
 #: (action, phrase, two espeak-ng voice:wpm takes): alternating motions and stops so every command asks
-#: for a change, back-and-forth so the flight stays near home. Phrases and voices are ones the bundled
-#: PocketSphinx model hears right from espeak-ng (as for the demo), so that most utterances are timed.
+#: for a change, back-and-forth so the flight stays near home. Phrases and voices are ones both the bundled
+#: PocketSphinx model and Whisper base hear right from espeak-ng (as for the demo), so that most utterances
+#: are timed with either engine ("hover" in en-gb, "move down" and "go forward" in some voices were not:
+#: session 14).
 SEQUENCE = [
-    ("go_forward", "go forward", ("en-us+f2:140", "en-us+f4:150")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
-    ("go_back", "go backward", ("en-us+f2:140", "en-us:140")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
-    ("go_right", "go right", ("en-us+f2:140", "en-us:140")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
-    ("go_left", "go left", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
-    ("up", "climb", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:140", "en-gb:160")),
-    ("down", "move down", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hover", ("en-gb:150", "en-gb:130")),
+    ("go_forward", "move forward", ("en-us+f2:140", "en-us:140")), ("stop", "hold", ("en-us+f2:140", "en-us+f2:120")),
+    ("go_back", "go backward", ("en-us+f2:140", "en-us:140")), ("stop", "hold", ("en-us+f2:120", "en-us+f2:140")),
+    ("go_right", "go right", ("en-us+f2:140", "en-us:140")), ("stop", "hold", ("en-us+f2:140", "en-us+f2:120")),
+    ("go_left", "go left", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hold", ("en-us+f2:120", "en-us+f2:140")),
+    ("up", "climb", ("en-us+f2:140", "en-us+f2:160")), ("stop", "hold", ("en-us+f2:140", "en-us+f2:120")),
+    ("down", "go down", ("en-us+f2:160", "en-us+f2:170")), ("stop", "hold", ("en-us+f2:120", "en-us+f2:140")),
     ("turn_right", "turn right", ("en-us:140", "en-us+f2:140")), ("turn_left", "turn left", ("en-us:140", "en-us+f2:140")),
 ]
 RESPONSE_M_S = 0.1   # (c) velocity changed this much toward the new target
