@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.events import heard_words
 from gcs_voice.session.listen import ScriptStep
 
 if TYPE_CHECKING:
@@ -104,11 +105,6 @@ def choose_voice(lang: str, engine: str | None, model: str | None) -> tuple[Voic
     return None, notes, f"{lang}: no recogniser"
 
 
-def _words(heard: dict | None) -> str:
-    """What the engine wrote (Whisper's transcript), else its best hypothesis, as the session's heard line shows."""
-    return (heard or {}).get("transcript") or (heard or {}).get("text", "-")
-
-
 def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], int]:
     """One line per step: said -> heard -> action -> done?; and how many were heard *and done* as intended.
 
@@ -141,7 +137,7 @@ def step_summary(steps: list[DemoStep], events: list[dict]) -> tuple[list[str], 
         else:
             verdict = "ok"
         good += verdict == "ok"
-        lines.append(f"  said {step.text!r:22} heard {_words(h)!r:24} -> {got or 'no action':11} "
+        lines.append(f"  said {step.text!r:22} heard {(heard_words(h) if h else '-')!r:24} -> {got or 'no action':11} "
                      f"{verdict}")
     return lines, good
 

@@ -13,7 +13,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Event", "EventBus", "KINDS"]
+__all__ = ["Event", "EventBus", "KINDS", "heard_words"]
 
 #: Event kinds, with what they carry beyond t/kind/msg.
 KINDS: dict[str, str] = {
@@ -34,6 +34,12 @@ KINDS: dict[str, str] = {
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }
+
+
+def heard_words(heard: Any) -> str:
+    """The words of a ``heard`` event for people to read: the engine's own transcript (Whisper scoring wrote
+    "Um" while the phrase it scored best was "ahead"), else its best hypothesis."""
+    return heard.get("transcript") or heard.get("text", "")
 
 
 @dataclass

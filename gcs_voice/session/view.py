@@ -14,7 +14,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Any
 
-from gcs_voice.session.events import Event
+from gcs_voice.session.events import Event, heard_words
 
 __all__ = ["ViewState", "LiveView", "render", "KEY_HELP"]
 
@@ -94,8 +94,7 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
     voice.add_column(style="dim")
     voice.add_column()
     if heard:
-        words = heard.get("transcript") or heard.get("text", "")  # Whisper's own words, not the phrase it scored
-        voice.add_row("heard", Text(f"\"{words}\"  ({heard.get('engine', '?')}, "
+        voice.add_row("heard", Text(f"\"{heard_words(heard)}\"  ({heard.get('engine', '?')}, "
                                     f"{heard.get('lang') or '?'})", style="bold"))
     if command:
         said = f"{command['phrase']} -> " if command.get("phrase") else ""
