@@ -343,3 +343,32 @@ def test_a_command_whisper_wrote_word_for_word_is_always_scored(whisper_model_di
     # the same evidence with a transcript that is no phrase leaves it out: the guarantee did it, not the ranking
     others = preselect(forms, greedy, steps, " Muestra la memoria", top_k=2)
     assert "desarma los motores" not in {forms.phrases[i].text for i in others}
+
+
+@pytest.mark.parametrize("mode", ["score", "grammar"])
+def test_features_are_computed_with_one_blas_thread(whisper_score, whisper, monkeypatch, mode) -> None:
+    """OpenBLAS's workers spin after the mel filter product and take the cores from the encoder that runs
+    next: the features are computed with one BLAS thread, and the process's own setting is left as it was."""
+    from threadpoolctl import threadpool_info
+
+    recognizer = whisper_score if mode == "score" else whisper
+    blas_threads = lambda: {pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"}
+    before = blas_threads()
+    seen: list[set[int]] = []
+
+    class Watched:  # the model's own extractor, noting the BLAS threads it runs with
+        def __init__(self, real):
+            self.real = real
+
+        def __call__(self, audio, *args, **kwargs):
+            seen.append(blas_threads())
+            return self.real(audio, *args, **kwargs)
+
+        def __getattr__(self, name):
+            return getattr(self.real, name)
+
+    monkeypatch.setattr(recognizer.model, "feature_extractor", Watched(recognizer.model.feature_extractor))
+    pcm = (np.sin(np.linspace(0, 2000, 16000)) * 8000).astype("<i2").tobytes()
+    recognizer.decode(pcm, "en")
+    assert seen and all(threads == {1} for threads in seen)
+    assert blas_threads() == before

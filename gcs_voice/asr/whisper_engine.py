@@ -66,6 +66,19 @@ class WhisperRecognizer:
         self._prompts: dict[str, list[int]] = {}
         self._forms: dict = {}  # language -> whisper_score.PhraseForms
         self._tokenizers: dict = {}
+        from threadpoolctl import ThreadpoolController
+
+        self._threadpools = ThreadpoolController()
+
+    def log_mel(self, audio: np.ndarray, window: int | None = None) -> np.ndarray:
+        """Whisper's log-mel features of ``audio`` (zero-padded to ``window`` samples when given), with
+        ONE BLAS thread: the mel filter product is the feature extractor's only BLAS call, and OpenBLAS's
+        workers, left spinning after it, took both cores from the encoder that runs next (its time went from
+        about 95 to 155 ms per utterance on 2 cores: docs/bench/real_timing.md)."""
+        with self._threadpools.limit(limits=1, user_api="blas"):
+            if window is None:
+                return self.model.feature_extractor(audio)
+            return _log_mel_padded(self.model.feature_extractor, audio, window)
 
     @classmethod
     def load(cls, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar"):
@@ -127,7 +140,7 @@ class WhisperRecognizer:
             return Recognition((), self.name, fixed_lang, audio_s, {})
         if self.mode == "score":
             return self._decode_scored(audio, fixed_lang, audio_s, between_stages)
-        features = self.model.feature_extractor(audio)
+        features = self.log_mel(audio)
         encoder_output = self.model.encode(pad_or_trim(features))
         lang, lang_prob, known_mass = self.detect(encoder_output, fixed_lang)
         prompt = self._prompt(lang)
@@ -192,7 +205,7 @@ class WhisperRecognizer:
         audio = audio[: 28 * SAMPLE_RATE]
         window = max(audio.size + int(float(s.get("score_pad_s", 0.3)) * SAMPLE_RATE),
                      int(float(s.get("score_window_s", 0.0)) * SAMPLE_RATE))
-        features = _log_mel_padded(self.model.feature_extractor, audio.astype(np.float32), window)
+        features = self.log_mel(audio.astype(np.float32), window)
         encoded = self.model.encode(features)
         # The decoder's cost grows with every encoder position it attends to, once per scored phrase:
         # keep the utterance and score_crop_s after it (2 mel frames per position), not the silent rest
