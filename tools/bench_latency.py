@@ -32,6 +32,7 @@ from gcs_voice.session.flight_log import read_flight
 from gcs_voice.link.setpoints import body_to_ned
 from gcs_voice.session.listen import ScriptStep
 from gcs_voice.session.session_log import read_session_log
+from tools.cpu_steal import CpuSample
 
 #: (action, phrase, two espeak-ng voice:wpm takes): alternating motions and stops so every command asks
 #: for a change, back-and-forth so the flight stays near home. Phrases and voices are ones both the bundled
@@ -180,10 +181,11 @@ def main(argv: list[str] | None = None) -> int:
         model = args.whisper_model if engine == "whisper" else None
         try:
             started = time.monotonic()
-            timed, total = fly_engine(engine, model, items, work)
+            with CpuSample() as cpu:
+                timed, total = fly_engine(engine, model, items, work)
         except GcsVoiceError as exc:
             print(f"{engine}: skipped ({exc})")
-            rows.append(f"| {engine} | skipped: {exc} | | | | | | | | | |")
+            rows.append(f"| {engine} | skipped: {exc} | | | | | | | | | | |")
             continue
         a = [r["a_ms"] for r in timed]
         b = [r["b_ms"] for r in timed if r["b_ms"] is not None]
@@ -191,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         load = _load()
         line = (f"| {engine} | {len(timed)}/{len(items)} | {percentile(a, .5):.0f} | {percentile(a, .95):.0f} | "
                 f"{percentile(b, .5):.0f} | {percentile(b, .95):.0f} | {percentile([y - x for x, y in zip(a, b)], .95):.1f} | "
-                f"{len(c)} | {percentile(c, .5):.0f} | {percentile(c, .95):.0f} | {load} |")
+                f"{len(c)} | {percentile(c, .5):.0f} | {percentile(c, .95):.0f} | {load} | {_stolen(cpu)} |")
         rows.append(line)
         print(line, f"({time.monotonic() - started:.0f} s)")
         if b and (best is None or percentile(b, .95) < best[0]):
@@ -199,7 +201,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
-        "Command: `nice -n 10 python -m tools.bench_latency"
+        "Command: `nice -n 10 python -m tools.bench_latency --engines " + args.engines
         + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --out {args.out}" if args.out else "") + "`",
         "",
         f"Corpus: {corpus_note}; fed at speaking pace, one every {GAP_S:g} s, after `--takeoff 1.5`.",
@@ -209,10 +211,11 @@ def main(argv: list[str] | None = None) -> int:
         f"the wire (tlog); (c) telemetry shows the vehicle responding: velocity changed >= {RESPONSE_M_S:g} m/s toward",
         f"the new target, or heading turned >= {RESPONSE_DEG:g} deg (n = commands that asked for a change).",
         "Only utterances decided as the intended action are timed (timed/total). Milliseconds. (b)-(a): time",
-        "from the decision to the setpoint on the wire. load: 1-minute load average of the machine after the run.",
+        "from the decision to the setpoint on the wire. load: 1-minute load average of the machine after the run;",
+        "stolen: the share of the busy CPU time the hypervisor took during the run (tools/cpu_steal.py).",
         "",
-        "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (b)-(a) p95 | (c) n | (c) p50 | (c) p95 | load |",
-        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
+        "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (b)-(a) p95 | (c) n | (c) p50 | (c) p95 | load | stolen |",
+        "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",
         *rows,
         "",
         f"Machine: {_machine()}.",
@@ -252,6 +255,11 @@ def _load() -> str:
         return f"{os.getloadavg()[0]:.1f}"
     except OSError:
         return "?"
+
+
+def _stolen(cpu: CpuSample) -> str:
+    share = cpu.steal_share
+    return "?" if share is None else f"{100 * share:.0f} %"
 
 
 def _machine() -> str:
