@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tools.cpu_steal import CpuSample, read_cpu_times
+from tools.cpu_steal import CpuSample, busy_loops, read_cpu_times
 
 #             user nice system idle iowait irq softirq steal guest guest_nice
 BEFORE = "cpu  1000 0 100 5000 10 0 0 50 0 0\ncpu0 500 0 50 2500 5 0 0 25 0 0\n"
@@ -33,3 +33,11 @@ def test_this_machine_reads() -> None:
     times = read_cpu_times()
     if Path("/proc/stat").exists():
         assert times is not None and times["user"] >= 0 and "steal" in times
+
+
+def test_busy_loops_run_for_the_block_only() -> None:
+    with busy_loops(2) as procs:
+        assert len(procs) == 2 and all(proc.poll() is None for proc in procs)
+    assert all(proc.returncode is not None for proc in procs)
+    with busy_loops(0) as none:
+        assert none == []

@@ -41,7 +41,7 @@ from gcs_voice.domain.dictionary import load_language
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.understanding import get_matcher
 from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
-from tools.cpu_steal import CpuSample
+from tools.cpu_steal import CpuSample, busy_loops
 from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
 REPO = Path(__file__).resolve().parent.parent
@@ -436,9 +436,10 @@ def variants_report(engine: str = "whisper-score") -> str | None:
     return "\n".join(lines) + "\n"
 
 
-def timing(engine: str, model: str | None, n: int) -> str:
+def timing(engine: str, model: str | None, n: int, hogs: int = 0) -> str:
     """Decision time (end of audio to recognition) of ``n`` clean test-split files, alternating commands
-    and non-commands; run it on an idle machine. Returns a markdown section."""
+    and non-commands; run it on an idle machine, or with ``hogs`` busy-loop processes beside it (a ground
+    station that also runs a simulator or a browser). Returns a markdown section."""
     import os
 
     from gcs_voice.asr.registry import load_recognizer
@@ -451,7 +452,7 @@ def timing(engine: str, model: str | None, n: int) -> str:
     picked = [x for pair in zip(commands[::2], others[::2]) for x in pair][:n]
     recognise_one(recognizer, condition_audio(picked[0], "clean"))  # warm-up, not counted
     times, cpu_ms, audio_s = [], [], 0.0
-    with CpuSample() as cpu:
+    with busy_loops(hogs), CpuSample() as cpu:
         for rec in picked:
             audio = condition_audio(rec, "clean")
             used = time.process_time()
@@ -462,9 +463,11 @@ def timing(engine: str, model: str | None, n: int) -> str:
             audio_s += audio.size / 16_000
     load = os.getloadavg()[0]
     p50, p95 = statistics.median(times), float(np.percentile(times, 95))
-    return (f"## Decision time, {engine}\n\n`python -m tools.bench_real timing --engine {engine} --n {n}`: {len(times)} "
+    loaded = f", {hogs} busy-loop processes beside it" if hogs else ""
+    return (f"## Decision time, {engine}{loaded}\n\n`python -m tools.bench_real timing --engine {engine} --n {n}"
+            f"{f' --hogs {hogs}' if hogs else ''}`: {len(times)} "
             f"clean test-split files (commands and non-commands alternating), streamed in 100 ms chunks; time from "
-            f"the end of the audio to the recognition. Load average at the end: {load:.2f} (2 cores); {cpu.describe()}.\n\n"
+            f"the end of the audio to the recognition{loaded}. Load average at the end: {load:.2f} (2 cores); {cpu.describe()}.\n\n"
             f"| p50 | p95 | max | real-time factor (decision time / audio) | CPU time per utterance p50 / p95 "
             f"(both threads) |\n| --- | --- | --- | --- | --- |\n"
             f"| {p50:.0f} ms | {p95:.0f} ms | {max(times):.0f} ms | {sum(times) / 1000 / audio_s:.3f} | "
@@ -586,6 +589,8 @@ def main(argv: list[str] | None = None) -> int:
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     tim.add_argument("--n", type=int, default=60)
+    tim.add_argument("--hogs", type=int, default=0,
+                     help="busy-loop processes beside the file timing (2: both cores of this machine busy)")
     tim.add_argument("--out", type=Path, help="also write the section to this file (docs/bench/real_timing.md)")
     tim.add_argument("--live", action="store_true", help="the microphone path in real time (segmenter + voice thread)")
     tim.add_argument("--no-speculate", action="store_true", help="with --live: decide only once the utterance closed")
@@ -614,9 +619,11 @@ def main(argv: list[str] | None = None) -> int:
             parser.error("--write chooses the shipped thresholds: tune a variant (--tag) without it")
         return tune(args.engine, args.write)
     if args.stage == "timing":
+        if args.live and args.hogs:
+            parser.error("--hogs loads the file timing; the microphone path under load is tools.bench_stop_latency")
         model = args.model if args.engine.startswith("whisper") else None
         text = (live_timing(args.engine, model, args.n, not args.no_speculate, args.vad_settings) if args.live
-                else timing(args.engine, model, args.n))
+                else timing(args.engine, model, args.n, args.hogs))
         print(text)
         if args.out:
             with open(args.out, "a" if args.live else "w", encoding="utf-8") as out:

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import os
 import shlex
-import subprocess
 import sys
 import tempfile
 import time
@@ -33,6 +32,7 @@ from pathlib import Path
 
 from tools.bench_latency import percentile
 from tools.bench_stream import read_wav, voiced_level
+from tools.cpu_steal import busy_loops
 from tools.real_speech import SHARED, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -40,11 +40,6 @@ MOTIONS = ("go_forward", "go_left", "climb", "turn_left")
 MOTION_ACTION = {"go_forward": "go_forward", "go_left": "go_left", "climb": "up", "turn_left": "turn_left"}
 GAP_S = 2.0
 RATE = 16_000
-
-
-def hog(n: int) -> list[subprocess.Popen]:
-    """``n`` busy-loop processes: the other load on the machine (ended by the caller, by pid)."""
-    return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -84,8 +79,7 @@ def main(argv: list[str] | None = None) -> int:
                                                   voiced_tail), load=("-", "-"), work=args.from_dir)
     work = Path(tempfile.mkdtemp(prefix="bench-stop-"))
     voice = load_voice("en", args.engine, args.model, None)
-    hogs = hog(args.hogs)
-    try:
+    with busy_loops(args.hogs):
         time.sleep(1.0)
         load_before = os.getloadavg()[0]
         with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / "sim.log") as sim:
@@ -93,10 +87,6 @@ def main(argv: list[str] | None = None) -> int:
                                                headless=True, quiet=True, log_dir=work, log_name="stop",
                                                stop_spotter=not args.no_spotter), voice=voice)
         load_after = os.getloadavg()[0]
-    finally:
-        for h in hogs:
-            h.kill()
-            h.wait()
     return report(args, argv, stops, *analyse(result.jsonl, result.tlog, stops, voiced_tail),
                   load=(f"{load_before:.1f}", f"{load_after:.1f}"), work=work)
 

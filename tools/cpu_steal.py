@@ -1,4 +1,5 @@
-"""How much CPU time the hypervisor took from this machine during a measurement (Linux ``/proc/stat``).
+"""The machine's CPU during a measurement: how much time the hypervisor took (Linux ``/proc/stat``), and
+busy loops that load it on purpose.
 
 On a shared virtual machine the host may run other guests on our cores: their time shows as *steal*.
 A timing benchmark that ran while a third of its CPU time was stolen says more about the host than about
@@ -8,13 +9,20 @@ stolen share beside their figures, so that runs on different days can be compare
     with CpuSample() as cpu:
         ...  # the measurement
     print(cpu.describe())
+
+    with busy_loops(2):  # both cores of a 2-core machine busy with another process
+        ...
 """
 
 from __future__ import annotations
 
+import subprocess
+import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-__all__ = ["CpuSample", "read_cpu_times"]
+__all__ = ["CpuSample", "busy_loops", "read_cpu_times"]
 
 PROC_STAT = Path("/proc/stat")
 
@@ -68,3 +76,15 @@ class CpuSample:
         if share is None:
             return "CPU time stolen by the host: unknown (no /proc/stat)"
         return f"CPU time stolen by the host (hypervisor steal): {100 * share:.0f} % of the busy time"
+
+
+@contextmanager
+def busy_loops(n: int) -> Iterator[list[subprocess.Popen]]:
+    """``n`` busy-loop processes for the duration of the block: "another process" loading the machine."""
+    procs = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
+    try:
+        yield procs
+    finally:
+        for proc in procs:
+            proc.kill()
+            proc.wait()
