@@ -626,8 +626,9 @@ def main(argv: list[str] | None = None) -> int:
                 else timing(args.engine, model, args.n, args.hogs))
         print(text)
         if args.out:
-            with open(args.out, "a" if args.live else "w", encoding="utf-8") as out:
-                out.write(("\n" if args.live else "") + text)
+            appended = args.live or args.hogs  # the idle file timing starts the file; the others follow it
+            with open(args.out, "a" if appended else "w", encoding="utf-8") as out:
+                out.write(("\n" if appended else "") + text)
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
