@@ -314,6 +314,15 @@ def test_evidence_limits_can_differ_by_language(tmp_path) -> None:
     assert decision.action is None and "class_gap 0.70 < 1.00" in decision.reason
 
 
+def test_a_phrase_heard_but_too_near_another_class_says_so() -> None:
+    """Whisper wrote "alto" word for word and the class gap refused it: the reason read "not a command: heard
+    'alto', not 'alto'"; it is heard, and unsure."""
+    decision = get_matcher("phonetic").decide(_scored("stop", "Stop", 0.0, gap=0.1), [EN])
+    assert decision.action is None
+    assert decision.reason.startswith("unsure: heard 'Stop', as 'stop' but nearly as much as something else")
+    assert "class_gap 0.10 <" in decision.reason and "not 'stop'" not in decision.reason
+
+
 def test_spanish_judges_the_words_of_a_short_transcript_too() -> None:
     """espeak-ng "me oyes bien" was heard "Ma Yes, Lien": no more words than "a la izquierda", within its margin,
     and no word of it sounds like a go_left word. Spanish judges short transcripts word by word (thresholds.toml

@@ -263,6 +263,9 @@ class Matcher:
             if kind == "max" and value > limit:
                 return f"'{recognition.text}' sounded unsure ({name} {value:.2f} > {limit:.2f})"
             if kind == "min" and value < limit:
+                if name == "class_gap":  # the phrase was heard, but another class (or a not-command) nearly as well
+                    return (f"unsure: heard '{recognition.transcript or recognition.text}', as '{recognition.text}' "
+                            f"but nearly as much as something else ({name} {value:.2f} < {limit:.2f})")
                 if recognition.transcript:  # the engine heard something else than the phrase
                     return (f"not a command: heard '{recognition.transcript}', not '{recognition.text}' "
                             f"({name} {value:.2f} < {limit:.2f})")
