@@ -265,6 +265,23 @@ def test_log_mel_of_the_utterance_alone_is_that_of_the_padded_window(samples, wi
     assert float(np.max(np.abs(ours - whisper))) <= 2.5e-7
 
 
+def test_one_blas_thread_gives_the_same_features() -> None:
+    """The one-BLAS-thread features (``WhisperRecognizer.log_mel``) are what the extractor gives with the
+    process's own BLAS threads, so the decisions measured before that change still stand (a float32 ulp is
+    allowed: a BLAS may split the sums differently by thread)."""
+    from faster_whisper.feature_extractor import FeatureExtractor
+    from threadpoolctl import threadpool_limits
+
+    from gcs_voice.asr.whisper_engine import _log_mel_padded
+
+    extractor = FeatureExtractor()
+    audio = (np.random.default_rng(7).standard_normal(20000) * 0.1).astype(np.float32)
+    shared = _log_mel_padded(extractor, audio, 128000)
+    with threadpool_limits(limits=1, user_api="blas"):
+        alone = _log_mel_padded(extractor, audio, 128000)
+    assert float(np.max(np.abs(shared - alone))) <= 2.5e-7
+
+
 def _spanish_preselect_case(whisper_model_dir, heard: str):
     """Spanish phrase forms and a greedy pass that wrote ``heard`` with every step flat (no evidence)."""
     import tokenizers
