@@ -73,8 +73,8 @@ class WhisperRecognizer:
     def log_mel(self, audio: np.ndarray, window: int | None = None) -> np.ndarray:
         """Whisper's log-mel features of ``audio`` (zero-padded to ``window`` samples when given), with
         ONE BLAS thread: the mel filter product is the feature extractor's only BLAS call, and OpenBLAS's
-        workers, left spinning after it, took both cores from the encoder that runs next (its time went from
-        about 95 to 155 ms per utterance on 2 cores: docs/bench/real_timing.md)."""
+        workers, left spinning after it, took both cores from the encoder that runs next (which then took
+        about 155 ms per utterance instead of 95 on 2 cores: docs/bench/real_timing.md)."""
         with self._threadpools.limit(limits=1, user_api="blas"):
             if window is None:
                 return self.model.feature_extractor(audio)
