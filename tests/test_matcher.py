@@ -334,3 +334,19 @@ def test_spanish_judges_the_words_of_a_short_transcript_too() -> None:
     said = Recognition(heard.hypotheses, heard.engine, "es", heard.audio_s, heard.extra, transcript="A la izquierda")
     assert get_matcher("phonetic").decide(said, [ES]).action == "go_left"
     assert get_matcher("phonetic").decide(_scored("go left", "Go lift", 0.0), [EN]).action == "go_left"
+
+
+def test_a_negation_in_what_was_heard_refuses_the_command() -> None:
+    """The demo's espeak-ng "go left" was written "Don't lift." by Whisper base, came within the margin of
+    "go left" (a transcript no longer than the phrase is left to the margin) and flew left. A negation word of
+    the dictionary anywhere in the transcript refuses it; a stop still stops ("don't stop" costs a pause)."""
+    decision = get_matcher("phonetic").decide(_scored("go left", "Don't lift.", 0.0), [EN])
+    assert decision.action is None
+    assert decision.reason == "not a command: heard 'Don't lift.', and 'dont' says not to"
+    assert get_matcher("phonetic").decide(_scored("go left", "Go lift", 0.0), [EN]).action == "go_left"
+    assert get_matcher("phonetic").decide(_scored("up", "Not up.", 0.0), [EN]).action is None
+    assert get_matcher("phonetic").decide(_scored("stop", "Don't stop!", 0.0), [EN]).action == "stop"
+    spanish = _scored("baja", "No baja.", 0.0)
+    spanish = Recognition(spanish.hypotheses, spanish.engine, "es", spanish.audio_s, spanish.extra,
+                          transcript=spanish.transcript)
+    assert "'no' says not to" in get_matcher("phonetic").decide(spanish, [ES]).reason

@@ -70,6 +70,9 @@ class Dictionary:
     #: words people say near a drone that sound like commands ("four", "off"): a recogniser that weighs
     #: alternatives scores them as rivals of the phrases, and no action follows when one is as likely
     not_commands: tuple[str, ...] = ()
+    #: words that turn a command into its refusal ("don't", "no", "nunca"), normalised: a transcript with one
+    #: in it is not acted on ("Don't go left" is no "go left"), whatever else it scores
+    negations: tuple[str, ...] = ()
 
     def actions(self) -> tuple[str, ...]:
         """Action classes this dictionary covers, in canonical order."""
@@ -143,7 +146,11 @@ def load_dictionary(path: str | Path) -> Dictionary:
     others = data.get("not_commands", [])
     if not isinstance(others, list) or not all(isinstance(w, str) and normalize_text(w) for w in others):
         raise DictionaryError(f"{path}: 'not_commands' must be a list of non-empty strings")
-    unknown_keys = set(data) - {"language", "name", "skip_words", "phrases", "not_commands"}
+    negations = data.get("negations", [])
+    if not isinstance(negations, list) or not all(isinstance(w, str) and len(normalize_text(w).split()) == 1
+                                                  for w in negations):
+        raise DictionaryError(f"{path}: 'negations' must be a list of single words")
+    unknown_keys = set(data) - {"language", "name", "skip_words", "phrases", "not_commands", "negations"}
     if unknown_keys:
         raise DictionaryError(f"{path}: unknown key(s) {', '.join(sorted(unknown_keys))}")
     table = data.get("phrases")
@@ -189,6 +196,12 @@ def load_dictionary(path: str | Path) -> Dictionary:
     if starts:
         word, text = starts[0]
         raise DictionaryError(f"{path}: not_commands {word!r} begins the phrase {text!r}")
+    # a negation inside a phrase would refuse that phrase whenever it is heard
+    negation_keys = tuple(dict.fromkeys(normalize_text(w) for w in negations))
+    said = [(w, p.text) for w in negation_keys for p in phrases if w in p.key.split()]
+    if said:
+        word, text = said[0]
+        raise DictionaryError(f"{path}: negations {word!r} is a word of the phrase {text!r}")
     return Dictionary(
         language=language.strip(),
         name=name,
@@ -197,6 +210,7 @@ def load_dictionary(path: str | Path) -> Dictionary:
         skip_words=skip_keys,
         by_key=by_key,
         not_commands=tuple(others),
+        negations=negation_keys,
     )
 
 

@@ -121,7 +121,7 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = self._transcript_reason(recognition, best) if rejecting else ""
+        reason = (_negation_reason(recognition, best) or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
@@ -277,6 +277,24 @@ class Matcher:
     ) -> Decision:
         return Decision(action=None, text=text, phrase=phrase, lang=lang, score=score, reason=reason,
                         matcher=self.name)
+
+
+#: the one class a negation does not refuse: "don't stop" stopping costs a pause, a refused stop a wall
+ALWAYS_SAFE = "stop"
+
+
+def _negation_reason(recognition: Recognition, best: Candidate) -> str:
+    """Speech that says a command with a negation ("Don't go left", "not up") is a refusal, not that command.
+
+    The score of "go left" in "Don't go left" can come near Whisper's own transcript (the margin), and a
+    short transcript is otherwise left to the margin alone; one negation word of the dictionary anywhere in
+    what was heard refuses it instead. A stop is never refused for it (stopping is always safe).
+    """
+    if best.phrase.action == ALWAYS_SAFE or not best.dictionary.negations:
+        return ""
+    said = recognition.transcript or best.text
+    word = next((w for w in normalize_text(said).split() if w in best.dictionary.negations), None)
+    return f"not a command: heard '{said}', and '{word}' says not to" if word else ""
 
 
 def _went_on_reason(recognition: Recognition) -> str:
