@@ -6,7 +6,9 @@ per core: "another process" loading the machine). The script alternates a motion
 recording; done by the script anyway if it is not heard, so there is always something to stop) with a
 real recorded "stop" from the held-out test part of ``../shared/speech``
 (``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this
-file has none of its own).
+file has none of its own). ``--conditions clean,kitchen12`` flies one session per condition: under a noisy
+condition each stop recording is mixed with that real noise at that SNR (``tools.real_speech.condition_audio``,
+what every real-speech tool hears), so the stop spotter and the recogniser hear a stop said in a noisy room.
 
 For each stop: the end of speech is the end of the recording's voiced frames (25 dB below its peak,
 tools/bench_stream.voiced_level) on the wall clock of the feed (recordings are fed at speaking pace);
@@ -14,7 +16,7 @@ the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire af
 tlog). A stop heard by the stop spotter goes out before the main recogniser runs; one it misses waits for
 the main decision (or never comes: missed).
 
-    python -m tools.bench_stop_latency --out docs/bench/latency.md
+    python -m tools.bench_stop_latency --engines sphinx,whisper --conditions clean,kitchen12 --out docs/bench/latency.md
 
 ``--out`` replaces this benchmark's section ("## Stop latency with both cores loaded") in that file, or
 appends it: the rest of the file (tools/bench_latency.py's tables) stays.
@@ -28,18 +30,22 @@ import shlex
 import sys
 import tempfile
 import time
+import wave
 from pathlib import Path
+
+import numpy as np
 
 from tools.bench_latency import percentile
 from tools.bench_stream import read_wav, voiced_level
 from tools.cpu_steal import busy_loops
-from tools.real_speech import SHARED, load_recordings
+from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
-MOTIONS = ("go_forward", "go_left", "climb", "turn_left")
-MOTION_ACTION = {"go_forward": "go_forward", "go_left": "go_left", "climb": "up", "turn_left": "turn_left"}
+MOTIONS = ("go_forward", "move_left", "climb", "turn_left")
+MOTION_ACTION = {"go_forward": "go_forward", "move_left": "go_left", "climb": "up", "turn_left": "turn_left"}
 GAP_S = 2.0
 RATE = 16_000
+DEMO = ROOT / "gcs_voice" / "session" / "demo_audio" / "en"
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -48,56 +54,85 @@ def main(argv: list[str] | None = None) -> int:
     from gcs_voice.session.sim_process import BundledSim
 
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--engine", default="sphinx", help="main recogniser (default sphinx: quick runs; the stop "
-                   "spotter runs before it whatever it is)")
-    p.add_argument("--model", default=None)
+    p.add_argument("--engines", default="sphinx", help="comma list of main recognisers, one session each per "
+                   "condition (default sphinx: quick runs; the stop spotter runs before it whatever it is)")
+    p.add_argument("--whisper-model", default=str(SHARED / "models" / "faster-whisper-base"))
     p.add_argument("--hogs", type=int, default=2, help="busy-loop processes (default 2: both cores)")
     p.add_argument("--stops", type=int, default=0, help="use only this many stop recordings (0: all)")
     p.add_argument("--no-spotter", action="store_true", help="without the stop spotter (for comparison)")
     p.add_argument("--out", default=None)
     p.add_argument("--speech", type=Path, default=SHARED / "speech")
     p.add_argument("--from", dest="from_dir", type=Path, default=None,
-                   help="analyse the session this tool left in DIR (stop.jsonl, stop.tlog) instead of flying")
+                   help="analyse the sessions this tool left in DIR (stop-ENGINE[-CONDITION].jsonl and .tlog) "
+                   "instead of flying")
+    p.add_argument("--conditions", default="clean",
+                   help="comma list of " + ", ".join(CONDITIONS) + ": one session each (default clean)")
     args = p.parse_args(argv)
+    conditions = [c for c in args.conditions.split(",") if c]
+    unknown = [c for c in conditions if c not in CONDITIONS]
+    if unknown or not conditions:
+        p.error(f"--conditions: unknown {', '.join(unknown) or '(none)'}; known: {', '.join(CONDITIONS)}")
 
-    stops = [r.path for r in load_recordings(args.speech, split="test") if r.action == "stop"]
+    recordings = [r for r in load_recordings(args.speech, split="test") if r.action == "stop"]
     if args.stops:
-        stops = stops[:args.stops]
-    demo = ROOT / "gcs_voice" / "session" / "demo_audio" / "en"
-    script = []
-    for i, stop in enumerate(stops):
-        motion = MOTIONS[i % len(MOTIONS)]
-        script.append(ScriptStep(demo / f"{motion}.wav", GAP_S, fallback_action=MOTION_ACTION[motion]))
-        script.append(ScriptStep(stop, GAP_S))
+        recordings = recordings[:args.stops]
+    stops = [r.path for r in recordings]
     voiced_tail = {}
     for s in stops:
         x = read_wav(s)
         _, _, v1 = voiced_level(x)
-        voiced_tail[s.name] = (x.size - v1) / RATE  # seconds of the file after its last voiced frame
-    if args.from_dir:
-        return report(args, argv, stops, *analyse(args.from_dir / "stop.jsonl", args.from_dir / "stop.tlog", stops,
-                                                  voiced_tail), load=("-", "-"), work=args.from_dir)
-    work = Path(tempfile.mkdtemp(prefix="bench-stop-"))
-    voice = load_voice("en", args.engine, args.model, None)
-    with busy_loops(args.hogs):
-        time.sleep(1.0)
-        load_before = os.getloadavg()[0]
-        with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / "sim.log") as sim:
-            result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
-                                               headless=True, quiet=True, log_dir=work, log_name="stop",
-                                               stop_spotter=not args.no_spotter), voice=voice)
-        load_after = os.getloadavg()[0]
-    return report(args, argv, stops, *analyse(result.jsonl, result.tlog, stops, voiced_tail),
-                  load=(f"{load_before:.1f}", f"{load_after:.1f}"), work=work)
+        voiced_tail[s.name] = (x.size - v1) / RATE  # seconds of the file after its last voiced frame (noise adds none)
+    work = args.from_dir or Path(tempfile.mkdtemp(prefix="bench-stop-"))
+    rows = []
+    for engine, cond in [(e, c) for e in args.engines.split(",") if e for c in conditions]:
+        name = "-".join(["stop", engine] + ([cond] if cond != "clean" else []))
+        if args.from_dir:
+            rows.append((engine, cond, analyse(work / f"{name}.jsonl", work / f"{name}.tlog", stops, voiced_tail),
+                         ("-", "-")))
+            continue
+        heard = stops if cond == "clean" else [noisy_copy(r, cond, work / cond) for r in recordings]
+        script = []
+        for i, stop in enumerate(heard):
+            motion = MOTIONS[i % len(MOTIONS)]
+            script.append(ScriptStep(DEMO / f"{motion}.wav", GAP_S, fallback_action=MOTION_ACTION[motion]))
+            script.append(ScriptStep(stop, GAP_S))
+        voice = load_voice("en", engine, args.whisper_model if engine == "whisper" else None, None)
+        with busy_loops(args.hogs):
+            time.sleep(1.0)
+            load_before = os.getloadavg()[0]
+            with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{name}.log") as sim:
+                result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
+                                                   headless=True, quiet=True, log_dir=work, log_name=name,
+                                                   stop_spotter=not args.no_spotter), voice=voice)
+            load_after = os.getloadavg()[0]
+        rows.append((engine, cond, analyse(result.jsonl, result.tlog, stops, voiced_tail),
+                     (f"{load_before:.1f}", f"{load_after:.1f}")))
+    return report(args, argv, stops, rows, work)
 
 
-def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path], spotted_l: list[float],
-           all_l: list[float], missed: int, load: tuple[str, str], work: Path) -> int:
+def noisy_copy(rec: Recording, condition: str, directory: Path) -> Path:
+    """The recording mixed as ``condition`` hears it, written under its own name (the session log names its
+    source by file name, which is how :func:`analyse` finds each stop)."""
+    directory.mkdir(parents=True, exist_ok=True)
+    path = directory / rec.path.name
+    pcm = (np.clip(condition_audio(rec, condition), -1, 32767 / 32768) * 32768).astype("<i2")
+    with wave.open(str(path), "wb") as w:
+        w.setnchannels(1)
+        w.setsampwidth(2)
+        w.setframerate(RATE)
+        w.writeframes(pcm.tobytes())
+    return path
+
+
+def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path],
+           rows: list[tuple[str, str, tuple[list[float], list[float], int], tuple[str, str]]], work: Path) -> int:
     shown = " ".join(["python -m tools.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
     fmt = lambda v: f"{percentile(v, .5):.0f} | {percentile(v, .95):.0f}" if v else "- | -"  # noqa: E731
+    path = "main recogniser only" if args.no_spotter else "stop spotter, then"
     lines = [
-        f"| stop spotter, then {args.engine} | {len(stops)} | {len(spotted_l)} | {fmt(spotted_l)} | {len(all_l)} | "
-        f"{fmt(all_l)} | {missed} | {load[0]} / {load[1]} |",
+        f"| {path} {engine} | {cond} | {len(stops)} | {len(spotted_l)} | {fmt(spotted_l)} | {len(all_l)} | "
+        f"{fmt(all_l)} | {missed} | {load[0]} / {load[1]} |"
+        for engine, cond, (spotted_l, all_l, missed), load in rows
     ]
     report = "\n".join([
         "## Stop latency with both cores loaded",
@@ -106,13 +141,15 @@ def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path], 
         "in the last column, 2 cores). Real time, bundled simulator (ardupilot, open_field) on UDP loopback.",
         "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
         "(`python -m tools.real_speech`), each after a motion "
-        "(demo recording; done by the script if not heard). Clock origin: the end of speech (the recording's last "
+        "(demo recording; done by the script if not heard); under a noise condition (kitchen12: the real kitchen "
+        "recording of ../shared/noise 12 dB below the speech's voiced level) the stops are mixed with it, one "
+        "session per condition. Clock origin: the end of speech (the recording's last "
         "voiced frame, fed at speaking pace); end: the first zero-velocity setpoint on the wire (tlog). "
         f"Milliseconds; negative: the stop was on the wire before the recording's last voiced frame (the spotter "
-        f"fires while the word is still being said). Session log and tlog: `{work}`.",
+        f"fires while the word is still being said). Session logs and tlogs: `{work}`.",
         "",
-        "| path | stops said | stopped by the spotter | p50 | p95 | stopped at all | p50 | p95 | missed | load |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        "| path | noise | stops said | stopped by the spotter | p50 | p95 | stopped at all | p50 | p95 | missed | load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|",
         *lines, "",
     ])
     print(report)
