@@ -140,11 +140,11 @@ def write_truth(path: Path, placed: list[Placed]) -> None:
 
 
 def source_digest() -> str:
-    """Digest of the bridge's sources and data: a change in them invalidates the cached runs."""
+    """Digest of the bridge's sources and data (the dictionaries too): a change in them invalidates the cached runs."""
     h = hashlib.sha256()
     import tomllib
 
-    for p in sorted((ROOT / "gcs_voice").rglob("*")):
+    for p in sorted([*(ROOT / "gcs_voice").rglob("*"), *(ROOT / "dictionaries").glob("*.toml")]):
         if p.suffix in (".py", ".toml") and p.is_file():
             h.update(str(p.relative_to(ROOT)).encode())
             # TOML by its values: a comment edited in a settings file does not invalidate the runs
