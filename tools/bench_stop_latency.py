@@ -30,13 +30,10 @@ import shlex
 import sys
 import tempfile
 import time
-import wave
 from pathlib import Path
 
-import numpy as np
-
 from tools.bench_latency import percentile
-from tools.bench_stream import read_wav, voiced_level
+from tools.bench_stream import read_wav, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
 from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
@@ -113,14 +110,8 @@ def main(argv: list[str] | None = None) -> int:
 def noisy_copy(rec: Recording, condition: str, directory: Path) -> Path:
     """The recording mixed as ``condition`` hears it, written under its own name (the session log names its
     source by file name, which is how :func:`analyse` finds each stop)."""
-    directory.mkdir(parents=True, exist_ok=True)
     path = directory / rec.path.name
-    pcm = (np.clip(condition_audio(rec, condition), -1, 32767 / 32768) * 32768).astype("<i2")
-    with wave.open(str(path), "wb") as w:
-        w.setnchannels(1)
-        w.setsampwidth(2)
-        w.setframerate(RATE)
-        w.writeframes(pcm.tobytes())
+    write_wav(path, condition_audio(rec, condition))
     return path
 
 
