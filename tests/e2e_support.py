@@ -85,9 +85,9 @@ class FlyResult:
 
 
 def _fly_command(connection: str, wavs: list[Path], tmp_path: Path, takeoff_m: float | None, gap_s: float,
-                 hold_s: float, extra: Sequence[str]) -> list[str]:
-    cmd = [sys.executable, "-m", "gcs_voice", "--connect", connection, "--say", *map(str, wavs), "--gap", str(gap_s),
-           "--hold", str(hold_s), "--headless", "--json", "--log-dir", str(tmp_path), "--log-name", "flight",
+                 hold_s: float, extra: Sequence[str], listen: Path | None = None) -> list[str]:
+    heard = ["--say", *map(str, wavs), "--gap", str(gap_s)] if listen is None else ["--listen-wav", str(listen)]
+    cmd = [sys.executable, "-m", "gcs_voice", "--connect", connection, *heard, "--hold", str(hold_s), "--headless", "--json", "--log-dir", str(tmp_path), "--log-name", "flight",
            "--engine", "sphinx", *extra]
     if takeoff_m is not None:
         cmd += ["--takeoff", str(takeoff_m)]
@@ -109,9 +109,11 @@ def _fly_result(returncode: int, stdout: str, stderr: str, tmp_path: Path) -> Fl
 
 
 def run_fly(connection: str, wavs: list[Path], tmp_path: Path, *, takeoff_m: float | None = 1.5, gap_s: float = 3.0,
-            hold_s: float = 2.0, extra: Sequence[str] = (), timeout_s: float = 150.0) -> FlyResult:
-    """``python -m gcs_voice --connect ... --say ... --headless --json`` as a user would run it."""
-    cmd = _fly_command(connection, wavs, tmp_path, takeoff_m, gap_s, hold_s, extra)
+            hold_s: float = 2.0, extra: Sequence[str] = (), timeout_s: float = 150.0,
+            listen: Path | None = None) -> FlyResult:
+    """``python -m gcs_voice --connect ... --say ... --headless --json`` as a user would run it (``listen``:
+    ``--listen-wav`` that recording instead of ``--say``)."""
+    cmd = _fly_command(connection, wavs, tmp_path, takeoff_m, gap_s, hold_s, extra, listen)
     proc = subprocess.run(cmd, cwd=REPO, capture_output=True, text=True, timeout=timeout_s)
     return _fly_result(proc.returncode, proc.stdout, proc.stderr, tmp_path)
 

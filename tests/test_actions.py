@@ -226,3 +226,51 @@ def test_unknown_position_holds_nothing() -> None:
     blind = VehicleState(system_id=1, heading_deg=0.0, last_heard_s=0.0, link_ok=True)
     mapper.apply("stop", blind)
     assert mapper.setpoint(blind).holds == (False, False, False)
+
+
+def test_pause_holds_a_moving_vehicle_and_resume_goes_on_with_the_same_motion() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("go_forward", flying(90.0, height_m=2.0))
+    assert mapper.pause(flying(90.0, height_m=2.0, north_m=0.0, east_m=1.2)) == "go_forward"
+    held = mapper.setpoint(flying(90.0, height_m=2.0, north_m=0.0, east_m=1.5))   # overshoot: back to the pause point
+    assert held.is_stop and (held.hold_north_m, held.hold_east_m) == (0.0, 1.2) and mapper.paused == "go_forward"
+    assert mapper.resume(flying(90.0, height_m=2.0, east_m=1.3)) == "go_forward"
+    moving = mapper.setpoint(flying(90.0, height_m=2.0, east_m=1.3))
+    assert moving.forward_m_s == pytest.approx(H) and moving.yaw_deg == pytest.approx(90.0) and mapper.paused is None
+    assert mapper.resume(flying(90.0)) is None   # once
+
+
+@pytest.mark.parametrize("action", ["stop", "turn_right", "turn_left"])
+def test_pause_leaves_alone_what_does_not_move_the_vehicle(action: str) -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply(action, flying())
+    assert mapper.pause(flying()) is None and mapper.action == action and mapper.paused is None
+
+
+def test_a_decided_action_or_an_automatic_stop_ends_the_pause() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("go_left", flying())
+    mapper.pause(flying())
+    mapper.apply("stop", flying())   # the decision was a stop: nothing to resume any more
+    assert mapper.paused is None and mapper.resume(flying()) is None and mapper.setpoint(flying()).is_stop
+    mapper.apply("up", flying())
+    mapper.pause(flying())
+    mapper.setpoint(replace(flying(), link_ok=False))   # the link was lost while paused
+    assert mapper.paused is None and mapper.resume(flying()) is None and mapper.setpoint(flying()).is_stop
+    mapper.apply("down", flying())
+    mapper.pause(flying())
+    mapper.halt()   # Ctrl-C while paused
+    assert mapper.resume(flying()) is None and mapper.setpoint(flying()).is_stop
+    assert mapper.pause(flying()) is None
+
+
+def test_a_resumed_descent_still_stops_at_the_floor() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("down", flying(height_m=2.0))
+    mapper.pause(flying(height_m=1.0))
+    assert mapper.forget_pause() == "down" and mapper.resume(flying(height_m=1.0)) is None   # stayed stopped
+    mapper.apply("down", flying(height_m=1.0))
+    mapper.pause(flying(height_m=0.6))
+    mapper.resume(flying(height_m=0.6))
+    assert mapper.setpoint(flying(height_m=0.6)).down_m_s == pytest.approx(V)
+    assert mapper.setpoint(flying(height_m=SETTINGS.floor_m - 0.01)).is_stop and mapper.action == "stop"

@@ -21,6 +21,9 @@ def _fly(*args: str, tmp_path: Path) -> subprocess.CompletedProcess:
     (["--connect", "udpin://0.0.0.0:14540"], "udpin"),
     (["--udp", "70000"], "70000"),
     (["--say", "/no/such/file.wav", "--engine", "sphinx"], "/no/such/file.wav"),
+    (["--listen-wav", "/no/such/room.wav", "--engine", "sphinx"], "/no/such/room.wav"),
+    (["--listen-wav", __file__, "--engine", "sphinx"], "not a WAV"),
+    (["--listen-wav", "a.wav", "--say", "b.wav"], "not allowed with"),
     (["--engine", "nonsense"], "nonsense"),
     (["--matcher", "nonsense", "--engine", "sphinx"], "nonsense"),
 ])

@@ -1,20 +1,24 @@
 """Stop latency with both cores loaded by another process: end of speech to the stop setpoint on the wire.
 
-Flies one real session (``gcs_voice.session.run.run_session``, what ``gcs-voice --say`` runs) against the
-bundled simulator in real time on loopback, while this tool keeps two busy-loop processes running (one
-per core: "another process" loading the machine). The script alternates a motion (the bundled demo
-recording; done by the script anyway if it is not heard, so there is always something to stop) with a
-real recorded "stop" from the held-out test part of ``../shared/speech``
-(``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this
-file has none of its own). ``--conditions clean,kitchen12`` flies one session per condition: under a noisy
-condition each stop recording is mixed with that real noise at that SNR (``tools.real_speech.condition_audio``,
-what every real-speech tool hears), so the stop spotter and the recogniser hear a stop said in a noisy room.
+Flies one real session per engine and condition (``gcs_voice.session.run.run_session`` with
+``listen_wav``: what ``gcs-voice --listen-wav`` runs) against the bundled simulator in real time on
+loopback, while this tool keeps two busy-loop processes running (one per core: "another process" loading
+the machine). The session hears one recording as its microphone would: played in real time, cut by the
+segmenter, heard by the stop spotter while spoken, recognised while the closing silence runs out. The
+recording alternates a motion (a bundled demo recording: forward, left, climb, descend, each a motion
+through space) with a real recorded "stop" from the held-out test part of ``../shared/speech``
+(``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
+has none of its own), 2 s of silence after each. ``--conditions clean,kitchen12`` flies one session per
+condition: under a noisy condition each stop recording is mixed with that real noise at that SNR
+(``tools.real_speech.condition_audio``, what every real-speech tool hears).
 
-For each stop: the end of speech is the end of the recording's voiced frames (25 dB below its peak,
-tools/bench_stream.voiced_level) on the wall clock of the feed (recordings are fed at speaking pace);
-the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire after it (the session's
-tlog). A stop heard by the stop spotter goes out before the main recogniser runs; one it misses waits for
-the main decision (or never comes: missed).
+For each stop: the end of speech is the end of the stop recording's voiced frames (25 dB below its peak,
+``tools.bench_stream.voiced_level``) on the wall clock of the playback (the session logs when its first
+sample played); the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire after the
+recording began that stays so until the next motion is said (the session's tlog): a pause that was resumed
+is no stop. Each is put down to what sent it: the stop spotter, the pause while the utterance is decided
+(kept by the decision), or the main decision. A stop said to a vehicle that was not moving (its motion
+was not heard) is counted apart.
 
     python -m tools.bench_stop_latency --engines sphinx,whisper --conditions clean,kitchen12 --out docs/bench/latency.md
 
@@ -30,7 +34,10 @@ import shlex
 import sys
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+
+import numpy as np
 
 from tools.bench_latency import percentile
 from tools.bench_stream import read_wav, voiced_level, write_wav
@@ -38,15 +45,46 @@ from tools.cpu_steal import busy_loops
 from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
-MOTIONS = ("go_forward", "move_left", "climb", "turn_left")
-MOTION_ACTION = {"go_forward": "go_forward", "move_left": "go_left", "climb": "up", "turn_left": "turn_left"}
+#: motions through space (a turn only rotates the vehicle: nothing for a stop to stop)
+MOTIONS = ("go_forward", "move_left", "climb", "go_down")
 GAP_S = 2.0
+LEAD_S = 1.0
 RATE = 16_000
 DEMO = ROOT / "gcs_voice" / "session" / "demo_audio" / "en"
+SECTION = "## Stop latency with both cores loaded"
+
+
+@dataclass
+class Stream:
+    """The recording a session hears, and where in it each stop is (seconds from its first sample)."""
+
+    path: Path
+    #: per stop: (start of the stop recording, end of its voiced frames, start of the next motion or None)
+    stops: list[tuple[float, float, float | None]] = field(default_factory=list)
+
+
+def build_stream(recordings: list[Recording], condition: str, path: Path) -> Stream:
+    """Motion, 2 s, stop (mixed as ``condition`` hears it), 2 s, ... as one WAV."""
+    gap = np.zeros(int(GAP_S * RATE), np.float32)
+    parts: list[np.ndarray] = [np.zeros(int(LEAD_S * RATE), np.float32)]
+    at = parts[0].size
+    stream = Stream(path)
+    for i, rec in enumerate(recordings):
+        motion = read_wav(DEMO / f"{MOTIONS[i % len(MOTIONS)]}.wav")
+        stop = condition_audio(rec, condition)
+        _, _, voiced_end = voiced_level(read_wav(rec.path))  # of the clean recording: noise adds no speech
+        if stream.stops:
+            start, end, _ = stream.stops[-1]
+            stream.stops[-1] = (start, end, at / RATE)
+        stop_at = at + motion.size + gap.size
+        stream.stops.append((stop_at / RATE, (stop_at + voiced_end) / RATE, None))
+        parts += [motion, gap, stop, gap]
+        at = stop_at + stop.size + gap.size
+    write_wav(path, np.concatenate(parts))
+    return stream
 
 
 def main(argv: list[str] | None = None) -> int:
-    from gcs_voice.session.listen import ScriptStep
     from gcs_voice.session.run import SessionConfig, load_voice, run_session
     from gcs_voice.session.sim_process import BundledSim
 
@@ -57,11 +95,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--hogs", type=int, default=2, help="busy-loop processes (default 2: both cores)")
     p.add_argument("--stops", type=int, default=0, help="use only this many stop recordings (0: all)")
     p.add_argument("--no-spotter", action="store_true", help="without the stop spotter (for comparison)")
+    p.add_argument("--no-pause", action="store_true", help="without the pause while deciding (for comparison)")
     p.add_argument("--out", default=None)
     p.add_argument("--speech", type=Path, default=SHARED / "speech")
-    p.add_argument("--from", dest="from_dir", type=Path, default=None,
-                   help="analyse the sessions this tool left in DIR (stop-ENGINE[-CONDITION].jsonl and .tlog) "
-                   "instead of flying")
     p.add_argument("--conditions", default="clean",
                    help="comma list of " + ", ".join(CONDITIONS) + ": one session each (default clean)")
     args = p.parse_args(argv)
@@ -73,121 +109,114 @@ def main(argv: list[str] | None = None) -> int:
     recordings = [r for r in load_recordings(args.speech, split="test") if r.action == "stop"]
     if args.stops:
         recordings = recordings[:args.stops]
-    stops = [r.path for r in recordings]
-    voiced_tail = {}
-    for s in stops:
-        x = read_wav(s)
-        _, _, v1 = voiced_level(x)
-        voiced_tail[s.name] = (x.size - v1) / RATE  # seconds of the file after its last voiced frame (noise adds none)
-    work = args.from_dir or Path(tempfile.mkdtemp(prefix="bench-stop-"))
+    work = Path(tempfile.mkdtemp(prefix="bench-stop-"))
     rows = []
     for engine, cond in [(e, c) for e in args.engines.split(",") if e for c in conditions]:
-        name = "-".join(["stop", engine] + ([cond] if cond != "clean" else []))
-        if args.from_dir:
-            rows.append((engine, cond, analyse(work / f"{name}.jsonl", work / f"{name}.tlog", stops, voiced_tail),
-                         ("-", "-")))
-            continue
-        heard = stops if cond == "clean" else [noisy_copy(r, cond, work / cond) for r in recordings]
-        script = []
-        for i, stop in enumerate(heard):
-            motion = MOTIONS[i % len(MOTIONS)]
-            script.append(ScriptStep(DEMO / f"{motion}.wav", GAP_S, fallback_action=MOTION_ACTION[motion]))
-            script.append(ScriptStep(stop, GAP_S))
+        name = "-".join(["stop", engine, cond])
+        stream = build_stream(recordings, cond, work / f"{name}.wav")
         voice = load_voice("en", engine, args.whisper_model if engine == "whisper" else None, None)
         with busy_loops(args.hogs):
             time.sleep(1.0)
             load_before = os.getloadavg()[0]
             with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{name}.log") as sim:
-                result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
-                                                   headless=True, quiet=True, log_dir=work, log_name=name,
-                                                   stop_spotter=not args.no_spotter), voice=voice)
+                result = run_session(SessionConfig(connection=sim.connection, lang="en", listen_wav=stream.path,
+                                                   takeoff_m=1.5, hold_s=1.0, headless=True, quiet=True,
+                                                   log_dir=work, log_name=name, stop_spotter=not args.no_spotter,
+                                                   pause_while_deciding=not args.no_pause), voice=voice)
             load_after = os.getloadavg()[0]
-        rows.append((engine, cond, analyse(result.jsonl, result.tlog, stops, voiced_tail),
+        rows.append((engine, cond, analyse(result.jsonl, result.tlog, stream),
                      (f"{load_before:.1f}", f"{load_after:.1f}")))
-    return report(args, argv, stops, rows, work)
+    return report(args, argv, len(recordings), rows, work)
 
 
-def noisy_copy(rec: Recording, condition: str, directory: Path) -> Path:
-    """The recording mixed as ``condition`` hears it, written under its own name (the session log names its
-    source by file name, which is how :func:`analyse` finds each stop)."""
-    path = directory / rec.path.name
-    write_wav(path, condition_audio(rec, condition))
-    return path
+@dataclass
+class Result:
+    """Per session: latencies (ms) of the stops, by what sent them; and the stops not made."""
+
+    by: dict[str, list[float]] = field(default_factory=lambda: {"spotter": [], "pause": [], "decision": []})
+    missed: int = 0
+    not_moving: int = 0
+
+    @property
+    def stopped(self) -> list[float]:
+        return [ms for v in self.by.values() for ms in v]
 
 
-def report(args: argparse.Namespace, argv: list[str] | None, stops: list[Path],
-           rows: list[tuple[str, str, tuple[list[float], list[float], int], tuple[str, str]]], work: Path) -> int:
+def analyse(jsonl: Path, tlog: Path, stream: Stream) -> Result:
+    """Per stop: ms from its end of speech to the stop that stayed on the wire, and what sent it."""
+    from gcs_voice.session.flight_log import read_flight
+    from gcs_voice.session.session_log import read_session_log
+
+    events = read_session_log(jsonl)
+    flight = read_flight(tlog)
+    t0 = next(e["audio_t0"] for e in events if e["kind"] == "session" and e.get("phase") == "listening")
+    senders = ([("spotter", e["sent_t"]) for e in events if e["kind"] == "command" and e.get("origin") == "spotter"]
+               + [("pause", e["sent_t"]) for e in events if e["kind"] == "paused" and e.get("state") == "paused"]
+               + [("decision", e["sent_t"]) for e in events
+                  if e["kind"] == "command" and e.get("action") == "stop" and e.get("origin") == "voice"])
+    still = lambda sp: abs(sp.vx_m_s) < 0.02 and abs(sp.vy_m_s) < 0.02 and abs(sp.vz_m_s) < 0.02  # noqa: E731
+    result = Result()
+    for start_s, voiced_end_s, next_s in stream.stops:
+        start, end = t0 + start_s, t0 + voiced_end_s
+        until = t0 + next_s if next_s is not None else float("inf")
+        before = [sp for sp in flight.setpoints if sp.t_s < start]
+        if not before or still(before[-1]):
+            result.not_moving += 1
+            continue
+        window = [sp for sp in flight.setpoints if start <= sp.t_s < until]
+        # the first still setpoint from which the stream stays still up to the next motion
+        first = None
+        for i in range(len(window) - 1, -1, -1):
+            if not still(window[i]):
+                break
+            first = window[i]
+        if first is None:
+            result.missed += 1
+            continue
+        sender = min(senders, key=lambda s: abs(s[1] - first.t_s))[0] if senders else "decision"
+        result.by[sender].append((first.t_s - end) * 1000)
+    return result
+
+
+def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
+           rows: list[tuple[str, str, Result, tuple[str, str]]], work: Path) -> int:
     shown = " ".join(["python -m tools.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
     fmt = lambda v: f"{percentile(v, .5):.0f} | {percentile(v, .95):.0f}" if v else "- | -"  # noqa: E731
-    path = "main recogniser only" if args.no_spotter else "stop spotter, then"
+    path = ("main recogniser only" if args.no_spotter else "stop spotter") + ("" if args.no_pause else ", pause")
     lines = [
-        f"| {path} {engine} | {cond} | {len(stops)} | {len(spotted_l)} | {fmt(spotted_l)} | {len(all_l)} | "
-        f"{fmt(all_l)} | {missed} | {load[0]} / {load[1]} |"
-        for engine, cond, (spotted_l, all_l, missed), load in rows
+        f"| {path}, {engine} | {cond} | {n_stops} | {r.not_moving} | {len(r.by['spotter'])} | "
+        f"{len(r.by['pause'])} | {len(r.by['decision'])} | {len(r.stopped)} | {fmt(r.stopped)} | "
+        f"{max(r.stopped):.0f} | {r.missed} | {load[0]} / {load[1]} |" if r.stopped else
+        f"| {path}, {engine} | {cond} | {n_stops} | {r.not_moving} | 0 | 0 | 0 | 0 | - | - | - | {r.missed} | "
+        f"{load[0]} / {load[1]} |"
+        for engine, cond, r, load in rows
     ]
     report = "\n".join([
-        "## Stop latency with both cores loaded",
+        SECTION,
         "",
         f"Command: `{shown}`. {args.hogs} busy-loop processes run beside the session (load average before / after "
-        "in the last column, 2 cores). Real time, bundled simulator (ardupilot, open_field) on UDP loopback.",
+        "in the last column, 2 cores). Real time, bundled simulator (ardupilot, open_field) on UDP loopback; "
+        "the session hears one recording as its microphone would (`--listen-wav`: real time, the Silero "
+        "segmenter, the stop spotter while the word is spoken).",
         "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
-        "(`python -m tools.real_speech`), each after a motion "
-        "(demo recording; done by the script if not heard); under a noise condition (kitchen12: the real kitchen "
-        "recording of ../shared/noise 12 dB below the speech's voiced level) the stops are mixed with it, one "
-        "session per condition. Clock origin: the end of speech (the recording's last "
-        "voiced frame, fed at speaking pace); end: the first zero-velocity setpoint on the wire (tlog). "
-        f"Milliseconds; negative: the stop was on the wire before the recording's last voiced frame (the spotter "
-        f"fires while the word is still being said). Session logs and tlogs: `{work}`.",
+        "(`python -m tools.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
+        "descend); under a noise condition (kitchen12: the real kitchen recording of ../shared/noise 12 dB "
+        "below the speech's voiced level) each stop recording is mixed with it. Clock origin: the end of the "
+        "stop's speech (its last voiced frame, on the playback's clock); end: the first zero-velocity setpoint "
+        "on the wire that stays until the next motion is said (tlog), put down to what sent it: the stop "
+        "spotter, the pause while the utterance is decided (then kept by the decision), or the main decision. "
+        "Milliseconds; negative: on the wire before the last voiced frame (the spotter fires while the word is "
+        f"said). Session logs, tlogs and recordings: `{work}`.",
         "",
-        "| path | noise | stops said | stopped by the spotter | p50 | p95 | stopped at all | p50 | p95 | missed | load |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| path | noise | stops said | vehicle not moving | by the spotter | by the pause | by the decision | "
+        "stopped | p50 | p95 | max | missed | load |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         *lines, "",
     ])
     print(report)
     if args.out:
         write_section(Path(args.out), report)
     return 0
-
-
-def analyse(jsonl: Path, tlog: Path, stops: list[Path], voiced_tail: dict[str, float]
-            ) -> tuple[list[float], list[float], int]:
-    """Per stop recording: ms from its end of speech to the stop on the wire (spotted ones, all), and misses.
-
-    The stop of an utterance is the spotter's, sent while it was being fed (from its first chunk to its
-    ``thinking`` event), else the main decision's stop right after its ``heard`` event.
-    """
-    from gcs_voice.session.flight_log import read_flight
-    from gcs_voice.session.session_log import read_session_log
-
-    events = read_session_log(jsonl)
-    flight = read_flight(tlog)
-    spotted_l, all_l, missed = [], [], 0
-    for s in stops:
-        thinking = next((e for e in events if e["kind"] == "thinking" and e.get("source") == s.name), None)
-        heard = next((e for e in events if e["kind"] == "heard" and e.get("source") == s.name), None)
-        if thinking is None:
-            missed += 1
-            continue
-        end_t = thinking["utterance_end_t"]
-        fed_from = end_t - voiced_tail[s.name] - 1.5  # a recording here is at most ~1 s; with margin
-        stops_sent = [e for e in events if e["kind"] == "command" and e.get("action") == "stop" and e.get("sent_t")]
-        spot = [e for e in stops_sent if e.get("origin") == "spotter" and fed_from <= e["sent_t"] <= thinking["t"] + 0.5]
-        main = [e for e in stops_sent if e.get("origin") == "voice" and heard is not None
-                and heard["t"] - 0.01 <= e["sent_t"] <= heard["t"] + 1.0]
-        first = (spot or main or [None])[0]
-        if first is None:
-            missed += 1
-            continue
-        wire = next((sp for sp in flight.setpoints if sp.t_s >= first["sent_t"] - 0.002
-                     and abs(sp.vx_m_s) < 0.02 and abs(sp.vy_m_s) < 0.02 and abs(sp.vz_m_s) < 0.02), None)
-        if wire is None:
-            missed += 1
-            continue
-        ms = (wire.t_s - (end_t - voiced_tail[s.name])) * 1000
-        all_l.append(ms)
-        if first.get("origin") == "spotter":
-            spotted_l.append(ms)
-    return spotted_l, all_l, missed
 
 
 def write_section(path: Path, section: str) -> None:

@@ -232,7 +232,8 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--utterances", type=int, default=60)
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--quick", action="store_true", help="12 utterances, clean + kitchen 12 dB")
-    p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
+    p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"),
+                   help="the Whisper model (given to the default engine or --engine whisper)")
     p.add_argument("--engine", default=None, help="passed to gcs-voice recognize (default: what it picks)")
     p.add_argument("--vad", default=None, choices=("silero", "energy"), help="segmenter (default: vad.toml's)")
     p.add_argument("--vad-settings", default=None, metavar="TOML",
@@ -251,7 +252,9 @@ def main(argv: list[str] | None = None) -> int:
     snrs = [float(s) for s in args.snrs.split(",") if s]
     conditions: list[tuple[str, float | None]] = [] if args.no_clean else [("none", None)]
     conditions += [(n, s) for n in noises for s in snrs]
-    extra = ["--model", args.model] + (["--engine", args.engine] if args.engine else []) + \
+    # the Whisper model goes only to an engine that takes it (PocketSphinx's model is in its wheel)
+    model = ["--model", args.model] if args.engine in (None, "whisper") else []
+    extra = model + (["--engine", args.engine] if args.engine else []) + \
         (["--vad", args.vad] if args.vad else []) + \
         (["--vad-settings", str(Path(args.vad_settings).resolve())] if args.vad_settings else [])
     work = Path(args.work)

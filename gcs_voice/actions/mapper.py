@@ -14,12 +14,18 @@ Holds (positions carried with the setpoint, see ``actions.setpoint``): ``stop`` 
 height where it was heard; a turn holds the point it started from; ``go_*`` hold their height;
 ``up``/``down`` hold their horizontal point. A hold carries over while the next action keeps that axis
 still (stop then turn keeps the stop's point), so repeated commands do not creep.
+
+``pause()`` holds a moving vehicle while an utterance is being decided, and ``resume()`` goes on with the
+same motion when the utterance was not understood: a stop said to a moving vehicle is a stop from the end of
+the speech, however long the recogniser takes, and speech that is not a command changes nothing. Any
+other action ends the pause (the decided one replaces it); so do the automatic stops.
 """
 
 from __future__ import annotations
 
 import math
 import threading
+import time
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -69,6 +75,8 @@ def _finite(value: float | None) -> bool:
 
 HORIZONTAL_MOTIONS = frozenset({"go_forward", "go_back", "go_right", "go_left"})
 VERTICAL_MOTIONS = frozenset({"up", "down"})
+#: what ``pause`` holds: the motions that move the vehicle through space (a turn only rotates it in place)
+TRANSLATING_MOTIONS = HORIZONTAL_MOTIONS | VERTICAL_MOTIONS
 
 
 def _point(state: VehicleState) -> tuple[float, float] | None:
@@ -96,6 +104,11 @@ class ActionMapper:
         self.hold_down_m: float | None = None
         #: set by halt(): a plain flag, because a signal handler sets it (no lock may be taken there)
         self._halted = False
+        #: the motion ``pause()`` holds until ``resume()`` (None: nothing paused)
+        self.paused: str | None = None
+        #: UNIX time of the last pause or resume, read under the lock: every setpoint decided from then on
+        #: (a setpoint's time is read before it is computed) follows it
+        self.paused_t = 0.0
         #: called when ``events`` gets an entry or ``limit_reason`` changes, in the thread that asked for the
         #: setpoint (the link's stream): the session loop waits for this instead of polling. It must not block.
         self.on_change: Callable[[], object] | None = None
@@ -110,6 +123,32 @@ class ActionMapper:
     @property
     def halted(self) -> bool:
         return self._halted
+
+    def pause(self, state: VehicleState) -> str | None:
+        """Hold where the vehicle is while an utterance is decided; the motion paused, or None (none moving)."""
+        with self._lock:
+            if self._halted or self.action not in TRANSLATING_MOTIONS:
+                return None
+            self._update_holds(self.action, "stop", state)
+            self.paused, self.action = self.action, "stop"
+            self.paused_t = time.time()
+            return self.paused
+
+    def resume(self, state: VehicleState) -> str | None:
+        """Go on with the paused motion (the utterance was not a command); None when nothing is paused now."""
+        with self._lock:
+            action, self.paused = self.paused, None
+            if action is None or self._halted:
+                return None
+            self._apply(action, state)
+            self.paused_t = time.time()
+            return action
+
+    def forget_pause(self) -> str | None:
+        """End a pause without resuming: the vehicle stays stopped; the motion that was paused, or None."""
+        with self._lock:
+            action, self.paused = self.paused, None
+            return action
 
     def _init_yaw(self, state: VehicleState) -> float:
         if self.yaw_target_deg is None or not _finite(self.yaw_target_deg):
@@ -131,6 +170,7 @@ class ActionMapper:
     def _apply(self, action: str, state: VehicleState) -> MappedAction:
         if action not in ACTIONS:
             raise UnknownActionError(f"unknown action {action!r}; expected one of {', '.join(ACTIONS)}")
+        self.paused = None  # a decided action replaces the pause
         yaw = self._init_yaw(state)
         if action in FLIGHT_ACTIONS:
             self.action = "stop"
@@ -159,6 +199,7 @@ class ActionMapper:
             self.hold_down_m = state.down_m if _finite(state.down_m) else None
 
     def _switch_to_stop(self, reason: str, state: VehicleState | None = None) -> None:
+        self.paused = None  # an automatic stop (link lost, floor, Ctrl-C) is not undone by a resume
         if self.action == "stop":
             return
         self.events.append(f"{self.action} -> stop: {reason}")

@@ -10,7 +10,11 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterable, Iterator
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from gcs_voice.audio.sources import AudioChunk
 
 __all__ = ["microphone_utterances", "check_microphone"]
 
@@ -33,12 +37,14 @@ def check_microphone(device: int | str | None = None) -> str:
 
 def microphone_utterances(talk: threading.Event | None = None, device: int | str | None = None,
                           on_speech: Callable[[bytes | None], None] | None = None,
-                          on_tentative: Callable[[bytes], None] | None = None) -> Iterator[tuple[bytes, float]]:
+                          on_tentative: Callable[[bytes], None] | None = None,
+                          chunks: Iterable[AudioChunk] | None = None) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
     ``on_speech`` hears each utterance's audio while it is spoken; ``on_tentative`` gets an utterance's
-    PCM as soon as it is final if no speech follows (see ``segment_utterances``).
+    PCM as soon as it is final if no speech follows (see ``segment_utterances``). ``chunks`` replaces the
+    microphone (``gcs_voice.audio.sources.paced_chunks``: a recording heard as if spoken now).
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
@@ -46,7 +52,7 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
     t0: list[float] = []
 
     def gated() -> Iterator[AudioChunk]:
-        for chunk in microphone_chunks(device):
+        for chunk in (microphone_chunks(device) if chunks is None else chunks):
             if not t0:
                 t0.append(time.time() - chunk.start_s)
             if talk is not None and not talk.is_set():

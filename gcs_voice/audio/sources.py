@@ -11,7 +11,8 @@ from __future__ import annotations
 import queue
 import struct
 import sys
-from collections.abc import Iterator
+import time
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO
@@ -156,6 +157,21 @@ def pcm_to_chunks(pcm: bytes, chunk_s: float = CHUNK_S) -> Iterator[AudioChunk]:
 def wav_to_chunks(path: str | Path, chunk_s: float = CHUNK_S) -> Iterator[AudioChunk]:
     """A WAV file as a chunk stream (so tests and replays look exactly like the microphone)."""
     return pcm_to_chunks(read_wav(path), chunk_s)
+
+
+def paced_chunks(pcm: bytes, chunk_s: float = MICROPHONE_BLOCK_S,
+                 on_start: Callable[[float], object] | None = None) -> Iterator[AudioChunk]:
+    """Recorded PCM as a microphone gives it: each block once it has been "spoken" (wall-clock pace).
+
+    ``on_start`` gets the UNIX time of the first sample, so that times in the recording map to the clock."""
+    t0 = time.time()
+    if on_start is not None:
+        on_start(t0)
+    for chunk in pcm_to_chunks(pcm, chunk_s):
+        wait_s = t0 + chunk.start_s + len(chunk.pcm) / 2 / SAMPLE_RATE - time.time()
+        if wait_s > 0:
+            time.sleep(wait_s)
+        yield chunk
 
 
 def microphone_chunks(device: int | str | None = None, chunk_s: float = MICROPHONE_BLOCK_S) -> Iterator[AudioChunk]:

@@ -65,12 +65,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     voice.add_argument("--no-stop-spotter", action="store_true",
                        help="do not run the stop spotter before the recogniser (a stop then waits for the main "
                             "decision like any word)")
+    voice.add_argument("--no-pause", action="store_true",
+                       help="keep a moving vehicle moving while an utterance is decided (default: it holds from the "
+                            "end of the speech until the decision, and resumes after speech that was not a command)")
+    mic.add_argument("--listen-wav", type=Path, metavar="WAV",
+                     help="hear this recording as the microphone would (in real time, cut into utterances by the "
+                          "segmenter), then end the session")
     mic.add_argument("--say", nargs="+", type=Path, metavar="WAV",
                      help="feed these recorded utterances in order, as if spoken, instead of the microphone")
     voice.add_argument("--gap", type=_seconds(positive=False), default=3.0, metavar="S",
                        help="with --say: seconds each action runs before the next utterance (default 3)")
     voice.add_argument("--hold", type=_seconds(positive=False), default=3.0, metavar="S",
-                       help="with --say: seconds the last action runs before the session ends, stopped (default 3)")
+                       help="with --say or --listen-wav: seconds the last action runs before the session ends, stopped "
+                            "(default 3)")
     flight = parser.add_argument_group("flight")
     flight.add_argument("--takeoff", type=setting_type("takeoff_altitude_m"), metavar="M",
                         help="arm and take off to M metres as soon as the vehicle reports it can"
@@ -110,6 +117,7 @@ def run(args: argparse.Namespace) -> int:
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
         setting_overrides=overrides, setting_names=names, link_security=security_from_args(args),
         stop_spotter=not args.no_stop_spotter,
+        pause_while_deciding=not args.no_pause, listen_wav=args.listen_wav,
     )
     return run_session(config).exit_code
 

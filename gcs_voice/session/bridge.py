@@ -9,6 +9,10 @@ the mapper decides it and the link sends it (``stream_now`` sends a new command'
 the stream the rest); the bridge never sends one itself. Rules, in order:
 
 - no action (rejected utterance): nothing is commanded (the voice side already said why);
+- between the end of an utterance and its decision the voice side asks for a pause (``PAUSE``): a
+  moving vehicle holds where it is, so a stop is a stop from the end of the speech whatever the
+  recogniser takes; the decided action replaces the pause, and after speech that was not understood
+  ``RESUME`` goes on with the paused motion (``STAY``: stays stopped, when the words heard were a stop);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
 - motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
@@ -43,7 +47,7 @@ from gcs_voice.link.state import VehicleState
 from gcs_voice.link.vehicle_link import VehicleLink
 from gcs_voice.session.events import EventBus
 
-__all__ = ["Bridge", "Request", "status_of"]
+__all__ = ["Bridge", "Request", "status_of", "PAUSE", "RESUME", "STAY"]
 
 #: how long the final stop is kept on the wire before the link closes (several 10 Hz setpoints)
 FINAL_STOP_S = 0.6
@@ -52,6 +56,9 @@ ON_GROUND_HEIGHT_M = 0.2
 #: signals that end a session with the vehicle stopped first: Ctrl-C, ``kill`` / a service manager, a
 #: closed terminal. The exit status is 128 + the signal's number (130, 143, 129), as a shell reports it.
 STOP_SIGNALS = tuple(getattr(signal, name) for name in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, name))
+#: the voice side's requests around a decision (not actions): hold a moving vehicle while an utterance is
+#: decided; go on with the paused motion after speech that was not understood; or end the pause stopped
+PAUSE, RESUME, STAY = "pause", "resume", "stay"
 _SIGNAL_WORDS = {"SIGINT": "interrupted (Ctrl-C)", "SIGTERM": "terminated (SIGTERM)", "SIGHUP": "hung up (SIGHUP)"}
 
 
@@ -157,7 +164,8 @@ class Bridge:
             return self._changed.wait_for(lambda: not self._busy or self._finish.is_set(), timeout_s)
 
     def status(self) -> dict[str, Any]:
-        return status_of(self.link.state, self._busy or self.mapper.action)
+        paused = self.mapper.paused
+        return status_of(self.link.state, self._busy or (f"{paused} (paused)" if paused else self.mapper.action))
 
     # ---- the loop ---------------------------------------------------------------------------------
     def run(self) -> int:
@@ -243,6 +251,8 @@ class Bridge:
     def _serve(self, request: Request) -> None:
         action = request.action
         state = self.link.state
+        if action in (PAUSE, RESUME, STAY):
+            return self._serve_pause(request, state)
         if not state.link_ok:
             return self._refuse(request, "link lost - nothing is commanded until the vehicle is heard again")
         if action in FLIGHT_ACTIONS:
@@ -288,6 +298,48 @@ class Bridge:
                 "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},
             utterance_end_t=request.utterance_end_t, decided_t=request.decided_t, sent_t=sent_t,
         )
+        return None
+
+    def _serve_pause(self, request: Request, state: VehicleState) -> None:
+        """PAUSE / RESUME / STAY (see the module's rules); silent when there is nothing to pause or resume."""
+        utterance_end_t = request.utterance_end_t
+        if request.action == PAUSE:
+            velocity_mode = state.profile.velocity_mode if state.profile else None
+            if (self._busy or not state.link_ok or not state.armed
+                    or (velocity_mode and state.mode != velocity_mode)):
+                return None
+            paused = self.mapper.pause(state)
+            if paused is None:
+                return None
+            decided_s = self.mapper.paused_t
+            self.link.stream_now(self.mapper.setpoint, decided_s)
+            self.bus.emit("paused", f"{paused} paused while the utterance is decided", state="paused",
+                          action=paused, utterance_end_t=utterance_end_t, decided_t=decided_s, sent_t=time.time())
+            return None
+        if self.mapper.paused is None:
+            return None
+        if request.action == STAY:
+            paused = self.mapper.forget_pause()
+            self.bus.emit("paused", f"{paused} not resumed: the words heard were a stop; staying stopped",
+                          state="stayed", action=paused, utterance_end_t=utterance_end_t, sent_t=time.time())
+            return None
+        reason = ("link lost" if not state.link_ok else f"busy: {self._busy}" if self._busy
+                  else "vehicle is not armed" if not state.armed else "")
+        velocity_mode = state.profile.velocity_mode if state.profile else None
+        if not reason and velocity_mode and state.mode != velocity_mode:
+            reason = f"vehicle is in {state.mode}, not {velocity_mode}"
+        if reason:
+            paused = self.mapper.forget_pause()
+            self.bus.emit("paused", f"{paused} not resumed: {reason}", state="stayed", action=paused,
+                          reason=reason, utterance_end_t=utterance_end_t, sent_t=time.time())
+            return None
+        resumed = self.mapper.resume(state)
+        if resumed is None:
+            return None
+        decided_s = self.mapper.paused_t
+        self.link.stream_now(self.mapper.setpoint, decided_s)
+        self.bus.emit("paused", f"{resumed} resumed: nothing was understood", state="resumed", action=resumed,
+                      utterance_end_t=utterance_end_t, decided_t=decided_s, sent_t=time.time())
         return None
 
     def _start_operation(self, request: Request) -> None:

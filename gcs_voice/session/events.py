@@ -20,6 +20,9 @@ KINDS: dict[str, str] = {
     "session": "start/end of a session: phase, argv, versions, files",
     "link": "state connected|lost|restored, autopilot, vehicle ids",
     "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t",
+    "paused": "the motion held while an utterance is decided (state paused), then resumed after speech that was "
+              "not understood (resumed) or left stopped (stayed): action, utterance_end_t, decided_t (the setpoint's "
+              "time stamp in the tlog), sent_t",
     "thinking": "an utterance ended and its decision is pending: source, utterance_end_t",
     "late": "a decision came more than LATE_S after its utterance ended: late_s, action, source",
     "heard": "what the recogniser heard: text (the best hypothesis), transcript (the engine's own words when its "

@@ -10,7 +10,11 @@ bridge at once (a ``spotted`` event, then the stop command); the main decision f
 may command something else. The microphone is read and spotted in its own thread (``ear``), so a stop
 is heard even while the recogniser is still busy with the utterance before it. Between the end of an
 utterance and its decision a ``thinking`` event is out; a decision more than ``LATE_S`` after the end
-of its utterance is said (a ``late`` event).
+of its utterance is said (a ``late`` event). From the end of each utterance to its decision a moving
+vehicle is paused (``bridge.PAUSE``: the segmenter's first sign that the speech has ended, or the end
+of a recorded utterance), so a stop the spotter missed still takes effect at the end of the speech, not
+when the recogniser is done; speech that is not understood then resumes the motion (``RESUME``), unless
+its words were a stop phrase heard too unsurely to act on (``STAY``: stopping is always safe).
 Any exception here is a crash of the voice side: it is reported and the session ends with the
 vehicle stopped (the bridge's ``finish`` leads to its ``shutdown``).
 """
@@ -27,7 +31,8 @@ from typing import TYPE_CHECKING, Any
 
 from gcs_voice.asr.base import Abandoned, BufferedStream
 from gcs_voice.audio.sources import pcm_to_chunks
-from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.domain.text import normalize_text
+from gcs_voice.session.bridge import PAUSE, RESUME, STAY, Bridge, Request
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.session.events import EventBus
 
@@ -37,7 +42,7 @@ if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers
     from gcs_voice.domain.dictionary import Dictionary
     from gcs_voice.understanding.matcher import Matcher
 
-__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "TentativeUtterances", "read_utterance", "run_script", "run_microphone",
+__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "TentativeUtterances", "read_utterance", "run_script", "run_microphone", "run_recording",
            "start_voice_thread", "LATE_S"]
 
 BYTES_PER_S = 32_000
@@ -117,14 +122,17 @@ class VoicePipeline:
 
     def __init__(self, recognizer: Recognizer, matcher: Matcher, dictionaries: Sequence[Dictionary],
                  lang: str | None, bus: EventBus, realtime: bool = True,
-                 stop_spotter: StopSpotter | None = None) -> None:
+                 stop_spotter: StopSpotter | None = None, pause_while_deciding: bool = True) -> None:
         self.recognizer = recognizer
+        #: hold a moving vehicle from the end of each utterance to its decision (see the module's docstring)
+        self.pause_while_deciding = pause_while_deciding
         #: heard before the recogniser (None: no spotter, stops wait for the main decision like any word)
         self.stop_path = StopPath(stop_spotter, bus) if stop_spotter is not None else None
         #: feed recorded PCM at the pace it was spoken (as a microphone would), so streaming engines
         #: work during the utterance and latency counts from its real end
         self.realtime = realtime
         self.last_end_t = 0.0
+        self.last_heard_words = ""
         self.matcher = matcher
         self.dictionaries = list(dictionaries)
         self.lang = lang  # None = let the engine / matcher choose among the dictionaries (--lang auto)
@@ -133,6 +141,35 @@ class VoicePipeline:
         self._speculated: tuple[bytes, Recognition] | None = None
         #: speculations given up half-way because their utterance went on (``speculate(stale=...)``)
         self.abandoned = 0
+
+    def pause_motion(self, bridge: Bridge, utterance_end_t: float | None = None) -> None:
+        """An utterance has ended: hold a moving vehicle until it is decided (the bridge ignores it otherwise)."""
+        if self.pause_while_deciding:
+            now = time.time()
+            request = bridge.submit(Request(PAUSE, "voice", None, utterance_end_t if utterance_end_t is not None
+                                            else now, now))
+            # Wait (a few ms) until the bridge has sent it, as for a spotted stop: the recogniser that runs
+            # next may hold the interpreter (PocketSphinx decodes without releasing the GIL).
+            request.done.wait(STOP_WAIT_S)
+
+    def settle_pause(self, bridge: Bridge, decision: Decision, more_waiting: bool = False) -> None:
+        """After a rejected decision: resume the paused motion, or stay stopped if the words heard were a stop
+        phrase (heard, but not surely enough to act on: stopping is always safe).
+
+        Nothing while another utterance waits for its decision (its end paused the vehicle too)."""
+        if not self.pause_while_deciding or decision.accepted or more_waiting:
+            return
+        heard = self._class_of(self.last_heard_words)
+        bridge.submit(Request(STAY if heard == "stop" else RESUME, "voice", decision, self.last_end_t, time.time()))
+
+    def _class_of(self, words: str) -> str | None:
+        """The action class of a dictionary phrase that is exactly these words (normalised), or None."""
+        key = normalize_text(words)
+        for d in self.dictionaries:
+            phrase = d.by_key.get(key) if key else None
+            if phrase is not None:
+                return phrase.action
+        return None
 
     def speculate(self, pcm: bytes, stale: Callable[[], bool] | None = None) -> None:
         """Recognise a tentative utterance now; ``hear`` uses the result if the utterance ends as it is.
@@ -180,6 +217,8 @@ class VoicePipeline:
             if lag_s > 0:
                 time.sleep(lag_s)
         end_t = time.time() if recorded or utterance_end_t is None else utterance_end_t
+        if recorded and bridge is not None:
+            self.pause_motion(bridge, end_t)  # (the microphone's utterances are paused for by the ear thread)
         if spot is not None:
             spot.end(bridge, end_t)
         self.bus.emit("thinking", f"thinking… ({len(pcm) / BYTES_PER_S:.1f} s from {source})", source=source,
@@ -188,6 +227,8 @@ class VoicePipeline:
         assert recognition is not None
         heard_t = time.time()
         self.last_end_t = end_t
+        #: the engine's own words (Whisper's free transcript when its hypotheses are scored phrases)
+        self.last_heard_words = recognition.transcript or recognition.text
         alternatives = [h.text for h in recognition.hypotheses[:5]]
         self.bus.emit("heard", f"heard {recognition.heard!r} ({recognition.engine}"
                       f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
@@ -209,10 +250,12 @@ class VoicePipeline:
         return decision
 
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
-               recorded: bool = False) -> Request | None:
-        """Hear one utterance and hand an accepted action to the bridge (None when rejected)."""
+               recorded: bool = False, more_waiting: Callable[[], bool] | None = None) -> Request | None:
+        """Hear one utterance and hand an accepted action to the bridge (None when rejected: then the paused
+        motion resumes, unless ``more_waiting`` says another utterance waits for its decision)."""
         decision = self.hear(pcm, source, utterance_end_t, recorded, bridge)
         if not decision.accepted:
+            self.settle_pause(bridge, decision, more_waiting is not None and more_waiting())
             return None
         return bridge.submit(Request(decision.action, "voice", decision, self.last_end_t, time.time()))
 
@@ -277,13 +320,18 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
     """
     heard: queue.Queue[tuple[bytes, float] | _Tentative | BaseException | None] = queue.Queue()
     if tentatives is not None:
-        tentatives.sink = lambda pcm: heard.put(_Tentative(pcm))
+        def tentative(pcm: bytes) -> None:
+            pipeline.pause_motion(bridge)  # the speech has ended (the first sign of it): hold until decided
+            heard.put(_Tentative(pcm))
+
+        tentatives.sink = tentative
 
     def ear() -> None:
         try:
             for pcm, end_t in utterances:
                 if bridge.finished:
                     break
+                pipeline.pause_motion(bridge, end_t)  # (already paused by its tentative one, if any)
                 if pipeline.stop_path is not None and not spotted_while_spoken:
                     pipeline.stop_path.feed(bridge, pcm)
                     pipeline.stop_path.end(bridge, end_t)
@@ -305,7 +353,17 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
                 pipeline.speculate(item.pcm, stale=lambda pcm=item.pcm: _superseded(heard, pcm))
             continue
         pcm, end_t = item
-        pipeline.submit(bridge, pcm, "microphone", end_t)
+        pipeline.submit(bridge, pcm, "microphone", end_t, more_waiting=lambda: not heard.empty())
+
+
+def run_recording(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]],
+                  spotted_while_spoken: bool = False, tentatives: TentativeUtterances | None = None,
+                  hold_s: float = 3.0) -> None:
+    """``run_microphone`` on a source that ends (a recording heard as a microphone), then hold and end."""
+    run_microphone(pipeline, bridge, utterances, spotted_while_spoken, tentatives)
+    if not bridge.finished and not bridge.wait_finished(hold_s):
+        bridge.bus.emit("session", "recording done: holding and ending", phase="script-done")
+        bridge.finish(0)
 
 
 def _superseded(heard: queue.Queue, pcm: bytes) -> bool:

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import sys
 import threading
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, TypeAlias
@@ -19,7 +19,7 @@ from gcs_voice.session.bridge import STOP_SIGNALS, Bridge, Request
 from gcs_voice.session.collisions import CollisionWatch
 from gcs_voice.session.events import Event, EventBus
 from gcs_voice.session.listen import (ScriptStep, TentativeUtterances, VoicePipeline, read_utterance, run_microphone,
-                                      run_script, start_voice_thread)
+                                      run_recording, run_script, start_voice_thread)
 from gcs_voice.session.session_log import SessionLog, session_paths
 
 if TYPE_CHECKING:  # annotations only: the engines and matchers load when a session picks them
@@ -50,6 +50,8 @@ class SessionConfig:
     dictionaries: Sequence[str | Path] = ()
     settings_path: Path | None = None
     say: Sequence[Path] = ()
+    #: a recording heard as the microphone would hear it (real time, through the segmenter), then the end
+    listen_wav: Path | None = None
     gap_s: float = 3.0
     hold_s: float = 3.0
     takeoff_m: float | None = None
@@ -73,6 +75,8 @@ class SessionConfig:
     setting_names: dict[str, str] = field(default_factory=dict)
     #: run the stop spotter before the main recogniser (a stop word stops at once)
     stop_spotter: bool = True
+    #: hold a moving vehicle from the end of each utterance to its decision; resume after speech not understood
+    pause_while_deciding: bool = True
 
 
 @dataclass
@@ -166,7 +170,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
     steps = _script(config)
     for step in steps:
         read_utterance(step.path)  # a missing or unusable WAV fails here, before any flight
-    if not steps:
+    listen_pcm = read_utterance(config.listen_wav) if config.listen_wav is not None else None
+    if not steps and listen_pcm is None:
         from gcs_voice.audio.microphone import check_microphone
 
         check_microphone()
@@ -219,7 +224,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
         if not telemetry.ok:
             bus.emit("warning", f"telemetry request: {telemetry}")
         pipeline = VoicePipeline(recognizer, matcher, dictionaries, stream_lang, bus,
-                                 stop_spotter=_stop_spotter(config, dictionaries, bus))
+                                 stop_spotter=_stop_spotter(config, dictionaries, bus),
+                                 pause_while_deciding=config.pause_while_deciding)
         ready: threading.Event | None = None
         if config.takeoff_m is not None:
             bridge.submit(Request("take_off", "script"))
@@ -234,10 +240,26 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
             stop_path = pipeline.stop_path
             on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
             tentatives = TentativeUtterances()  # decided while the closing silence runs out
-            start_voice_thread(bridge, run_microphone, pipeline, bridge,
-                               microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
-                                                     on_tentative=tentatives),
-                               stop_path is not None, tentatives)
+            if listen_pcm is None:
+                start_voice_thread(bridge, run_microphone, pipeline, bridge,
+                                   microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
+                                                         on_tentative=tentatives),
+                                   stop_path is not None, tentatives)
+            else:
+                from gcs_voice.audio.sources import AudioChunk, paced_chunks
+
+                def recording() -> Iterator[AudioChunk]:
+                    """The recording from when the vehicle is ready, at the pace it was spoken."""
+                    if ready is not None and not ready.wait(link.ready_timeout_s + settings.takeoff_timeout_s + 30.0):
+                        raise GcsVoiceError("the vehicle did not become ready in time to hear the recording")
+                    yield from paced_chunks(listen_pcm, on_start=lambda t0: bus.emit(
+                        "session", f"listening to {config.listen_wav.name} as a microphone", phase="listening",
+                        source=config.listen_wav.name, audio_t0=t0))
+
+                start_voice_thread(bridge, run_recording, pipeline, bridge,
+                                   microphone_utterances(on_speech=on_speech, on_tentative=tentatives,
+                                                         chunks=recording()),
+                                   stop_path is not None, tentatives, config.hold_s)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
 
