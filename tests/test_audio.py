@@ -215,9 +215,15 @@ def test_the_segmenter_tells_its_listener_each_utterance_as_it_is_spoken(tmp_pat
     assert len(utterances) == 2
     ends = [i for i, piece in enumerate(heard) if piece is None]
     assert len(ends) == 2
-    # the listener saw exactly each utterance's audio (and the silence that ended it), before its end
+    # the listener saw each utterance's audio (and the silence that ended it) before its end, and the room
+    # before it: listen_pre_roll_s before the detected start, more than the utterance keeps (the stop spotter's
+    # cepstral mean settles on it)
     first = b"".join(heard[:ends[0]])
-    assert first.startswith(utterances[0].pcm)
+    assert utterances[0].pcm in first
+    silero = load_vad_settings().silero
+    assert silero.listen_pre_roll_s > silero.pre_roll_s
+    lead_s = first.index(utterances[0].pcm) / 2 / 16_000
+    assert lead_s == pytest.approx(min(silero.listen_pre_roll_s - silero.pre_roll_s, utterances[0].start_s), abs=0.033)
 
 
 def test_a_tentative_utterance_is_the_one_yielded_when_the_silence_runs_out(tmp_path):

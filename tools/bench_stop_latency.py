@@ -8,9 +8,10 @@ segmenter, heard by the stop spotter while spoken, recognised while the closing 
 recording alternates a motion (a bundled demo recording: forward, left, climb, descend, each a motion
 through space) with a real recorded "stop" from the held-out test part of ``../shared/speech``
 (``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
-has none of its own), 2 s of silence after each. ``--conditions clean,kitchen12`` flies one session per
-condition: under a noisy condition each stop recording is mixed with that real noise at that SNR
-(``tools.real_speech.condition_audio``, what every real-speech tool hears).
+has none of its own), 2 s of silence after each, every clip at the same speech level.
+``--conditions clean,kitchen12`` flies one session per condition: under a noisy condition that real noise
+runs under the whole recording at that SNR below the speech (``tools.bench_stream.under_noise``: the
+stream benchmark's room), so the motions are said in the noise too.
 
 For each stop: the end of speech is the end of the stop recording's voiced frames (25 dB below its peak,
 ``tools.bench_stream.voiced_level``) on the wall clock of the playback (the session logs when its first
@@ -40,9 +41,9 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_latency import percentile
-from tools.bench_stream import read_wav, voiced_level, write_wav
+from tools.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
-from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
+from tools.real_speech import CONDITIONS, SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 #: motions through space (a turn only rotates the vehicle: nothing for a stop to stop)
@@ -64,23 +65,27 @@ class Stream:
 
 
 def build_stream(recordings: list[Recording], condition: str, path: Path) -> Stream:
-    """Motion, 2 s, stop (mixed as ``condition`` hears it), 2 s, ... as one WAV."""
-    gap = np.zeros(int(GAP_S * RATE), np.float32)
-    parts: list[np.ndarray] = [np.zeros(int(LEAD_S * RATE), np.float32)]
+    """Motion, 2 s, stop, 2 s, ... as one WAV, every clip at the same speech level (a person at a steady
+    distance), and under a noisy ``condition`` its noise under the whole stream at its SNR, as
+    ``tools.bench_stream`` lays it (a room is noisy between the words too)."""
+    gap = np.zeros(int(GAP_S * RATE))
+    parts: list[np.ndarray] = [np.zeros(int(LEAD_S * RATE))]
     at = parts[0].size
     stream = Stream(path)
     for i, rec in enumerate(recordings):
-        motion = read_wav(DEMO / f"{MOTIONS[i % len(MOTIONS)]}.wav")
-        stop = condition_audio(rec, condition)
-        _, _, voiced_end = voiced_level(read_wav(rec.path))  # of the clean recording: noise adds no speech
+        motion = at_speech_level(read_wav(DEMO / f"{MOTIONS[i % len(MOTIONS)]}.wav"))
+        stop = read_wav(rec.path)
+        _, _, voiced_end = voiced_level(stop)
         if stream.stops:
             start, end, _ = stream.stops[-1]
             stream.stops[-1] = (start, end, at / RATE)
         stop_at = at + motion.size + gap.size
         stream.stops.append((stop_at / RATE, (stop_at + voiced_end) / RATE, None))
-        parts += [motion, gap, stop, gap]
+        parts += [motion, gap, at_speech_level(stop), gap]
         at = stop_at + stop.size + gap.size
-    write_wav(path, np.concatenate(parts))
+    stem, snr_db = CONDITIONS[condition]
+    noise = read_wav(SHARED / "noise" / f"{stem}.wav") if stem else None
+    write_wav(path, under_noise(np.concatenate(parts), noise, snr_db, np.random.default_rng(1)))
     return stream
 
 
@@ -200,8 +205,9 @@ def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
         "segmenter, the stop spotter while the word is spoken).",
         "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
         "(`python -m tools.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
-        "descend); under a noise condition (kitchen12: the real kitchen recording of ../shared/noise 12 dB "
-        "below the speech's voiced level) each stop recording is mixed with it. Clock origin: the end of the "
+        "descend), every clip at -26 dBFS over its voiced frames; under a noise condition (kitchen12: the real "
+        "kitchen recording of ../shared/noise) the noise runs under the whole recording 12 dB below that level, "
+        "as in `tools.bench_stream`, so the motions are said in it too. Clock origin: the end of the "
         "stop's speech (its last voiced frame, on the playback's clock); end: the first zero-velocity setpoint "
         "on the wire that stays until the next motion is said (tlog), put down to what sent it: the stop "
         "spotter, the pause while the utterance is decided (then kept by the decision), or the main decision. "

@@ -57,6 +57,77 @@ def run(clips: list[Recording], pcms: list[bytes], threshold: float, words: list
     return {"hits": hits, "p50": float(np.percentile(ms, 50)), "p95": float(np.percentile(ms, 95))}
 
 
+def mic_path(clips: list[Recording], noise: np.ndarray | None, listen_pre_roll_s: float, seed: int) -> dict:
+    """The spotter as a live session runs it: the clips in one stream (1.5-3 s pauses, the noise under all of
+    it at 12 dB, ``tools.bench_stream.build_stream``), cut by the Silero segmenter, the spotter fed by its
+    listener from ``listen_pre_roll_s`` before each detected start. A clip counts as fired when a spotter
+    session that overlaps it fired."""
+    from dataclasses import replace
+
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.audio.sources import MICROPHONE_BLOCK_S, pcm_to_chunks
+    from gcs_voice.audio.vad import load_vad_settings, segment_utterances
+    from tools.bench_stream import build_stream
+
+    x, placed = build_stream(clips, noise, 12.0 if noise is not None else None, seed, pause_s=(1.5, 3.0))
+    pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
+    settings = load_vad_settings()
+    settings = replace(settings, silero=replace(settings.silero, listen_pre_roll_s=listen_pre_roll_s))
+    spotter = load_stop_spotter(["en"])
+    now = {"t": 0.0}
+    sessions: list[tuple[float, float, bool]] = []
+    open_stream: list = []
+
+    def chunks():
+        for chunk in pcm_to_chunks(pcm, MICROPHONE_BLOCK_S):
+            now["t"] = chunk.start_s
+            yield chunk
+
+    def listen(piece: bytes | None) -> None:
+        if piece is None:
+            stream, t0 = open_stream.pop()
+            sessions.append((t0, now["t"], stream.finish().fired))
+            return
+        if not open_stream:
+            open_stream.append((spotter.start_stream(), now["t"]))
+        open_stream[0][0].accept(piece)
+
+    for _ in segment_utterances(chunks(), settings, on_speech=listen):
+        pass
+    hits = {"stop": [0, 0], "command": [0, 0], "word": [0, 0], "sentence": [0, 0]}
+    for p in placed:
+        fired = any(f for a, b, f in sessions if a < p.end_s + 0.3 and b > p.start_s)
+        key = "stop" if p.clip.action == "stop" else p.clip.kind
+        hits[key][0] += fired
+        hits[key][1] += 1
+    return {"hits": hits}
+
+
+def mic_clips(recs: list[Recording], seed: int) -> list[Recording]:
+    """Every stop, 20 sentences and 20 other commands of a split, shuffled (seeded)."""
+    clips = ([r for r in recs if r.action == "stop"] + [r for r in recs if r.kind == "sentence"][:20]
+             + [r for r in recs if r.kind == "command" and r.action != "stop"][:20])
+    order = np.random.default_rng(seed).permutation(len(clips))
+    return [clips[i] for i in order]
+
+
+def mic_report(pre_rolls: list[float]) -> list[str]:
+    """The section for ``--mic``: hits and false alarms per listen pre-roll, dev and test, clean and kitchen."""
+    kitchen = read_wav(SHARED / "noise" / NOISE_FILES["kitchen"])
+    lines = []
+    for part in ("dev", "test"):
+        clips = mic_clips(load_recordings(split=part), 3)
+        for cond, noise in (("clean", None), ("kitchen12", kitchen)):
+            for pre in pre_rolls:
+                r = mic_path(clips, noise, pre, 5)
+                cell = lambda k: f"{r['hits'][k][0]}/{r['hits'][k][1]}"  # noqa: E731
+                h = r["hits"]["stop"]
+                lines.append(f"| {part} | {cond} | {pre:g} | {100 * h[0] / h[1]:.0f} % ({cell('stop')}) | "
+                             f"{cell('command')} | {cell('sentence')} |")
+                print(lines[-1], flush=True)
+    return lines
+
+
 def false_rate(r: dict) -> float:
     f = sum(r["hits"][k][0] for k in ("command", "word", "sentence"))
     n = sum(r["hits"][k][1] for k in ("command", "word", "sentence"))
@@ -77,7 +148,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--words", default=None, help="comma list of English stop words (default: stop_spotter.toml's)")
     p.add_argument("--thresholds", default=",".join(f"{t:g}" for t in THRESHOLDS))
     p.add_argument("--conds", default="clean,kitchen12")
+    p.add_argument("--mic", default=None, metavar="S,S,...",
+                   help="instead: the spotter on the microphone path, for these listen pre-rolls (seconds heard "
+                        "before the segmenter's start, vad.toml listen_pre_roll_s); the section is added to --out")
     args = p.parse_args(argv)
+    if args.mic:
+        return mic_main(args, argv)
     kitchen = read_wav(SHARED / "noise" / NOISE_FILES["kitchen"])
     every = {"clean": None, "kitchen12": kitchen}
     conds = {k: v for k, v in every.items() if k in args.conds.split(",")}
@@ -127,6 +203,38 @@ def main(argv: list[str] | None = None) -> int:
         print(f"wrote {args.out}")
     else:
         print(report)
+    return 0
+
+
+MIC_SECTION = "## On the microphone path"
+
+
+def mic_main(args: argparse.Namespace, argv: list[str] | None) -> int:
+    lines = mic_report([float(v) for v in args.mic.split(",")])
+    shown = " ".join(["python -m tools.bench_stop_spotter", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
+    section = "\n".join([
+        MIC_SECTION,
+        "",
+        f"Command: `{shown}`",
+        "",
+        "The spotter as a live session runs it: every \"stop\" of a split, 20 of its sentences and 20 of its other "
+        "commands, shuffled, in one stream at 1.5-3 s pauses (each at -26 dBFS over its voiced frames; kitchen12: "
+        "the real kitchen recording under the whole stream 12 dB below, `tools.bench_stream.build_stream`), cut "
+        "by the Silero segmenter, the spotter fed by the segmenter's listener from `listen_pre_roll_s` before "
+        "each detected start (the rest of gcs_voice/audio/vad.toml as shipped). A recording counts as fired when "
+        "a spotter session overlapping it fired. Dev chooses, test reports.",
+        "",
+        "| part | noise | listen_pre_roll_s | stop hit | false: other commands | false: sentences |",
+        "|---|---|---|---|---|---|",
+        *lines, "",
+    ])
+    if args.out:
+        from tools.bench_stop_latency import write_section
+
+        write_section(Path(args.out), section)
+        print(f"wrote {args.out}")
+    else:
+        print(section)
     return 0
 
 

@@ -110,26 +110,38 @@ def build_stream(clips: list[Recording], noise: np.ndarray | None, snr_db: float
                  pause_s: tuple[float, float] = (1.5, 6.0)) -> tuple[np.ndarray, list[Placed]]:
     """Clips at random pauses (seeded) over a noise track; each clip at SPEECH_DBFS over its voiced part."""
     rng = np.random.default_rng(seed)
-    target = 10 ** (SPEECH_DBFS / 20)
     pieces, placed, t = [], [], 0
     lead = int(rng.uniform(*pause_s) * RATE)
     pieces.append(np.zeros(lead))
     t = lead
     for clip in clips:
         x = read_wav(clip.path)
-        level, v0, v1 = voiced_level(x)
-        x = x * (target / max(level, 1e-6))
+        _, v0, v1 = voiced_level(x)
+        x = at_speech_level(x)
         placed.append(Placed(clip, t / RATE, (t + x.size) / RATE, (t + v0) / RATE, (t + v1) / RATE))
         pause = int(rng.uniform(*pause_s) * RATE)
         pieces += [x, np.zeros(pause)]
         t += x.size + pause
-    speech = np.concatenate(pieces)
+    return under_noise(np.concatenate(pieces), noise, snr_db, rng), placed
+
+
+def at_speech_level(x: np.ndarray) -> np.ndarray:
+    """A clip brought to SPEECH_DBFS over its voiced frames: a person at a steady distance."""
+    level, _, _ = voiced_level(x)
+    return x * (10 ** (SPEECH_DBFS / 20) / max(level, 1e-6))
+
+
+def under_noise(speech: np.ndarray, noise: np.ndarray | None, snr_db: float | None,
+                rng: np.random.Generator) -> np.ndarray:
+    """A stream of speech at SPEECH_DBFS with the noise (from a random point, looped) under all of it,
+    ``snr_db`` below the speech's level; clean when either is None."""
     if noise is None or snr_db is None:
-        return np.clip(speech, -1, 1), placed
+        return np.clip(speech, -1, 1)
+    target = 10 ** (SPEECH_DBFS / 20)
     start = int(rng.integers(0, noise.size))
     track = np.resize(np.roll(noise, -start), speech.size)
     track = track * (target / 10 ** (snr_db / 20)) / max(float(np.sqrt(np.mean(track**2))), 1e-9)
-    return np.clip(speech + track, -1, 1), placed
+    return np.clip(speech + track, -1, 1)
 
 
 def write_truth(path: Path, placed: list[Placed]) -> None:

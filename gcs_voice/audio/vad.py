@@ -72,6 +72,8 @@ class SileroSettings:
     min_silence_s: float = 0.3
     pre_roll_s: float = 0.2
     post_pad_s: float = 0.1
+    #: audio the listener (``on_speech``: the stop spotter) hears before the detected start (at least pre_roll_s)
+    listen_pre_roll_s: float = 0.2
 
 
 @dataclass(frozen=True)
@@ -181,7 +183,8 @@ def segment_utterances(chunks: Iterable[AudioChunk], settings: VadSettings | Non
     """Yield utterances as soon as their end is heard (after the method's minimum silence).
 
     ``on_speech`` hears the audio of an utterance as it arrives, before the utterance is complete (the
-    stop spotter uses it not to wait for the silence that ends it), then None at its end.
+    stop spotter uses it not to wait for the silence that ends it), then None at its end; with Silero it
+    starts ``listen_pre_roll_s`` before the detected start (the room before the word).
     ``on_tentative`` (Silero only) gets the utterance as it WILL be yielded if no speech follows, as soon
     as its content is final (``post_pad_s`` after the last speech), before the rest of the minimum silence:
     a recogniser can decide it while the silence runs out. Speech that resumes makes a longer utterance,
@@ -222,6 +225,8 @@ def _silero_segments(chunks: Iterable[AudioChunk], s: VadSettings, vad: SileroVa
     min_speech_windows = max(1, round(p.min_speech_s / win_s))
     max_windows = max(1, int(s.max_utterance_s / win_s))
     history: deque[bytes] = deque(maxlen=pre_windows + 1)  # the current window and the pre-roll before it
+    # what the listener hears before the start: it may want more of the room than the recogniser
+    lead: deque[bytes] = deque(maxlen=max(pre_windows, round(p.listen_pre_roll_s / win_s)) + 1)
     speech: list[bytes] = []
     start_i = 0  # index of the utterance's first window (pre-roll included)
     voiced = 0  # windows at or above the end threshold in this utterance
@@ -237,11 +242,12 @@ def _silero_segments(chunks: Iterable[AudioChunk], s: VadSettings, vad: SileroVa
     for i, window in enumerate(_windows(chunks, SILERO_WINDOW * 2)):
         prob = vad.probability(np.frombuffer(window, "<i2").astype(np.float32) / 32768.0)
         history.append(window)
+        lead.append(window)
         if not in_utt:
             if prob >= p.start_threshold:
                 in_utt, speech, voiced, silent_run = True, list(history), 1, 0
                 start_i = i - len(history) + 1
-                listen(b"".join(speech))
+                listen(b"".join(lead))
             continue
         speech.append(window)
         listen(window)

@@ -302,44 +302,31 @@ class Bridge:
 
     def _serve_pause(self, request: Request, state: VehicleState) -> None:
         """PAUSE / RESUME / STAY (see the module's rules); silent when there is nothing to pause or resume."""
-        utterance_end_t = request.utterance_end_t
-        if request.action == PAUSE:
-            velocity_mode = state.profile.velocity_mode if state.profile else None
-            if (self._busy or not state.link_ok or not state.armed
-                    or (velocity_mode and state.mode != velocity_mode)):
-                return None
-            paused = self.mapper.pause(state)
-            if paused is None:
-                return None
-            decided_s = self.mapper.paused_t
-            self.link.stream_now(self.mapper.setpoint, decided_s)
-            self.bus.emit("paused", f"{paused} paused while the utterance is decided", state="paused",
-                          action=paused, utterance_end_t=utterance_end_t, decided_t=decided_s, sent_t=time.time())
-            return None
-        if self.mapper.paused is None:
-            return None
-        if request.action == STAY:
-            paused = self.mapper.forget_pause()
-            self.bus.emit("paused", f"{paused} not resumed: the words heard were a stop; staying stopped",
-                          state="stayed", action=paused, utterance_end_t=utterance_end_t, sent_t=time.time())
-            return None
-        reason = ("link lost" if not state.link_ok else f"busy: {self._busy}" if self._busy
-                  else "vehicle is not armed" if not state.armed else "")
         velocity_mode = state.profile.velocity_mode if state.profile else None
-        if not reason and velocity_mode and state.mode != velocity_mode:
-            reason = f"vehicle is in {state.mode}, not {velocity_mode}"
-        if reason:
+        not_flying = ("link lost" if not state.link_ok else f"busy: {self._busy}" if self._busy
+                      else "vehicle is not armed" if not state.armed
+                      else f"vehicle is in {state.mode}, not {velocity_mode}"
+                      if velocity_mode and state.mode != velocity_mode else "")
+        if request.action == PAUSE:
+            changed = None if not_flying else self.mapper.pause(state)
+            said, what = "paused while the utterance is decided", "paused"
+        elif self.mapper.paused is None:
+            return None
+        elif request.action == STAY or not_flying:
             paused = self.mapper.forget_pause()
-            self.bus.emit("paused", f"{paused} not resumed: {reason}", state="stayed", action=paused,
-                          reason=reason, utterance_end_t=utterance_end_t, sent_t=time.time())
+            reason = not_flying or "the words heard were a stop; staying stopped"
+            self.bus.emit("paused", f"{paused} not resumed: {reason}", state="stayed", action=paused, reason=reason,
+                          utterance_end_t=request.utterance_end_t, sent_t=time.time())
             return None
-        resumed = self.mapper.resume(state)
-        if resumed is None:
+        else:
+            changed = self.mapper.resume(state)
+            said, what = "resumed: nothing was understood", "resumed"
+        if changed is None:
             return None
-        decided_s = self.mapper.paused_t
+        decided_s = self.mapper.paused_t  # read under the mapper's lock: every later setpoint follows the change
         self.link.stream_now(self.mapper.setpoint, decided_s)
-        self.bus.emit("paused", f"{resumed} resumed: nothing was understood", state="resumed", action=resumed,
-                      utterance_end_t=utterance_end_t, decided_t=decided_s, sent_t=time.time())
+        self.bus.emit("paused", f"{changed} {said}", state=what, action=changed,
+                      utterance_end_t=request.utterance_end_t, decided_t=decided_s, sent_t=time.time())
         return None
 
     def _start_operation(self, request: Request) -> None:
