@@ -330,6 +330,37 @@ def shipped_setting(engine: str = "whisper-score") -> dict[str, float | None]:
     return {k: shipped.get(k) for k in grid}
 
 
+# -- stays -------------------------------------------------------------------------------------------
+def stays(engine: str = "whisper-score") -> str:
+    """Among the utterances the shipped decision rejects: how many were nearest a stop (the engine's words or its
+    best-scored phrase are a stop phrase), by what was really said. A session that paused a moving vehicle for
+    them stays stopped (gcs_voice.session.listen.VoicePipeline.settle_pause) instead of resuming."""
+    from collections import Counter
+
+    en = load_language("en")
+    matcher = get_matcher(MATCHER)
+    cache = load_cache(engine)
+    lines = ["| split | noise | real stops rejected | of them nearest a stop | other utterances rejected | "
+             "of them nearest a stop |", "|---|---|---|---|---|---|"]
+    for split in ("dev", "test"):
+        for cond in ("clean", "kitchen12"):
+            n = Counter()
+            for rec in load_recordings(split=split):
+                row = cache.get(_key(rec, cond))
+                if row is None:
+                    continue
+                recognition = _recognition(row)
+                if matcher.decide(recognition, [en]).accepted:
+                    continue
+                heard = (recognition.transcript or recognition.text, recognition.best.text if recognition.best else "")
+                near = any(getattr(en.by_key.get(normalize_text(w)), "action", None) == "stop" for w in heard)
+                kind = "stop" if rec.action == "stop" else "other"
+                n[kind] += 1
+                n[kind + " near"] += near
+            lines.append(f"| {split} | {cond} | {n['stop']} | {n['stop near']} | {n['other']} | {n['other near']} |")
+    return "\n".join(lines)
+
+
 # -- report -------------------------------------------------------------------------------------------
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
@@ -585,6 +616,7 @@ def main(argv: list[str] | None = None) -> int:
     tun.add_argument("--write", action="store_true", help="write the chosen value into thresholds.toml")
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
+    sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
@@ -629,6 +661,9 @@ def main(argv: list[str] | None = None) -> int:
             appended = args.live or args.hogs  # the idle file timing starts the file; the others follow it
             with open(args.out, "a" if appended else "w", encoding="utf-8") as out:
                 out.write(("\n" if appended else "") + text)
+        return 0
+    if args.stage == "stays":
+        print(stays())
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")

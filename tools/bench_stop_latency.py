@@ -8,7 +8,7 @@ segmenter, heard by the stop spotter while spoken, recognised while the closing 
 recording alternates a motion (a bundled demo recording: forward, left, climb, descend, each a motion
 through space) with a real recorded "stop" from the held-out test part of ``../shared/speech``
 (``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
-has none of its own), 2 s of silence after each, every clip at the same speech level.
+has none of its own), 2 s of silence after each, every stop at the same speech level.
 ``--conditions clean,kitchen12`` flies one session per condition: under a noisy condition that real noise
 runs under the whole recording at that SNR below the speech (``tools.bench_stream.under_noise``: the
 stream benchmark's room), so the motions are said in the noise too.
@@ -65,15 +65,16 @@ class Stream:
 
 
 def build_stream(recordings: list[Recording], condition: str, path: Path) -> Stream:
-    """Motion, 2 s, stop, 2 s, ... as one WAV, every clip at the same speech level (a person at a steady
-    distance), and under a noisy ``condition`` its noise under the whole stream at its SNR, as
-    ``tools.bench_stream`` lays it (a room is noisy between the words too)."""
+    """Motion, 2 s, stop, 2 s, ... as one WAV, the stops at the same speech level (a person at a steady
+    distance), and under a noisy ``condition`` its noise under the whole stream at its SNR below that level, as
+    ``tools.bench_stream`` lays it (a room is noisy between the words too). The motions keep their own
+    (louder) level: they are there to be stopped, and one not heard leaves nothing to stop."""
     gap = np.zeros(int(GAP_S * RATE))
     parts: list[np.ndarray] = [np.zeros(int(LEAD_S * RATE))]
     at = parts[0].size
     stream = Stream(path)
     for i, rec in enumerate(recordings):
-        motion = at_speech_level(read_wav(DEMO / f"{MOTIONS[i % len(MOTIONS)]}.wav"))
+        motion = read_wav(DEMO / f"{MOTIONS[i % len(MOTIONS)]}.wav")  # its own level: it is there to be stopped
         stop = read_wav(rec.path)
         _, _, voiced_end = voiced_level(stop)
         if stream.stops:
@@ -205,9 +206,10 @@ def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
         "segmenter, the stop spotter while the word is spoken).",
         "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
         "(`python -m tools.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
-        "descend), every clip at -26 dBFS over its voiced frames; under a noise condition (kitchen12: the real "
-        "kitchen recording of ../shared/noise) the noise runs under the whole recording 12 dB below that level, "
-        "as in `tools.bench_stream`, so the motions are said in it too. Clock origin: the end of the "
+        "descend, at the demo recordings' own level), every stop at -26 dBFS over its voiced frames; under a noise "
+        "condition (kitchen12: the real kitchen recording of ../shared/noise) the noise runs under the whole "
+        "recording 12 dB below the stops' level, as in `tools.bench_stream`, so the motions are said in it too. "
+        "Clock origin: the end of the "
         "stop's speech (its last voiced frame, on the playback's clock); end: the first zero-velocity setpoint "
         "on the wire that stays until the next motion is said (tlog), put down to what sent it: the stop "
         "spotter, the pause while the utterance is decided (then kept by the decision), or the main decision. "

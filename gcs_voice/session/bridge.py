@@ -12,7 +12,7 @@ the stream the rest); the bridge never sends one itself. Rules, in order:
 - between the end of an utterance and its decision the voice side asks for a pause (``PAUSE``): a
   moving vehicle holds where it is, so a stop is a stop from the end of the speech whatever the
   recogniser takes; the decided action replaces the pause, and after speech that was not understood
-  ``RESUME`` goes on with the paused motion (``STAY``: stays stopped, when the words heard were a stop);
+  ``RESUME`` goes on with the paused motion (``STAY``: stays stopped, when what was heard was nearest a stop);
 - link lost (vehicle silent ``link_lost_s``): nothing is commanded until it returns, and the first
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
 - motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
@@ -314,7 +314,7 @@ class Bridge:
             return None
         elif request.action == STAY or not_flying:
             paused = self.mapper.forget_pause()
-            reason = not_flying or "the words heard were a stop; staying stopped"
+            reason = not_flying or "what was heard was nearest a stop; staying stopped"
             self.bus.emit("paused", f"{paused} not resumed: {reason}", state="stayed", action=paused, reason=reason,
                           utterance_end_t=request.utterance_end_t, sent_t=time.time())
             return None
