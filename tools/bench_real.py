@@ -17,7 +17,9 @@ must stay within HALF their 2 % target (a setting that only just fits dev would 
 actions within 1 %, there and one grid step looser in any threshold; among those, the best
 "right - 3 x wrong - 2 x acted on non-commands" over clean, kitchen 20 dB and kitchen 12 dB wins (at 12 dB
 no setting meets the targets on dev).
-``report`` writes the tables with the count behind every percentage.
+``report`` writes the tables with the count behind every percentage, and ``frontier`` (also a section of the
+report) the most any threshold of the rule could keep within the targets, chosen on the test split itself: an upper
+bound that tells whether better thresholds or a better model is what is missing.
 """
 
 from __future__ import annotations
@@ -231,15 +233,17 @@ def objective(c: Counts) -> int:
     return c.right - WRONG_COST * c.wrong - ACTED_COST * c.others_acted
 
 
-def sweep(cache: dict[str, dict], dev: list[Recording], engine: str = "whisper-score"
+def sweep(cache: dict[str, dict], dev: list[Recording], engine: str = "whisper-score",
+          grid: dict[str, list[float]] | None = None, conditions: tuple[str, ...] = TUNE_CONDITIONS
           ) -> tuple[list[tuple[dict[str, float], bool, int, dict[str, Counts]]], list[str]]:
     """Every grid setting of the engine's thresholds on dev: (values, within the limits, objective, counts per
     condition), and the conditions used. "Within the limits" holds at the setting and one grid step looser in
-    any key (see :func:`tune`)."""
+    any key (see :func:`tune`). ``grid`` replaces the tuned grid (the frontier sweeps a wider one)."""
     import itertools
 
-    table, grid = TUNED[engine]
-    conditions = [c for c in TUNE_CONDITIONS if any(_key(r, c) in cache for r in dev)]
+    table, tuned_grid = TUNED[engine]
+    grid = grid or tuned_grid
+    conditions = [c for c in conditions if any(_key(r, c) in cache for r in dev)]
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n, combo in enumerate(itertools.product(*grid.values())):
@@ -330,6 +334,77 @@ def shipped_setting(engine: str = "whisper-score") -> dict[str, float | None]:
     return {k: shipped.get(k) for k in grid}
 
 
+# -- frontier -----------------------------------------------------------------------------------------
+#: the frontier's wider grid: from far looser than any tuned setting to far stricter
+FRONTIER_GRID = {"min_margin": [round(x / 10, 1) for x in range(-40, 1)],
+                 "min_class_gap": [-99.0, -1.0, -0.5, 0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.5, 2.0, 3.0]}
+FRONTIER_CONDITIONS = ("clean", "kitchen20", "kitchen12", "kitchen6")
+
+
+def within_targets(c: Counts, condition: str) -> bool:
+    """The issue's limits on one condition: non-command words and sentences acted on (each), wrong actions."""
+    acted, wrong = LIMITS["clean" if condition == "clean" else "noisy"]
+    return (c.words_acted <= acted * c.words and c.sentences_acted <= acted * c.sentences
+            and c.wrong <= wrong * c.commands)
+
+
+def margin_only(recs: list[Recording], condition: str, cache: dict[str, dict], min_margin: float) -> Counts:
+    """The plainest rule: act on the best-scored phrase's class when its margin (its score less that of Whisper's
+    own transcript) is at least ``min_margin``; no class gap, no transcript check."""
+    en = load_language("en")
+    c = Counts()
+    for rec in recs:
+        row = cache.get(_key(rec, condition))
+        if row is None:
+            continue
+        best = en.by_key.get(normalize_text(row["hypotheses"][0][0])) if row["hypotheses"] else None
+        top = best.action if best else None
+        c.add(rec.kind, rec.action, top if row["extra"].get("margin", -99.0) >= min_margin else None, top)
+    return c
+
+
+def frontier(engine: str = "whisper-score") -> str:
+    """What any threshold could reach on the held-out speakers, with the thresholds chosen ON them (an upper
+    bound that no honest tuning reaches): the most commands right that keep every target of the condition."""
+    cache = load_cache(engine)
+    test = load_recordings(split="test")
+    rows, conditions = sweep(cache, test, engine, FRONTIER_GRID, FRONTIER_CONDITIONS)
+    matcher = get_matcher(MATCHER)
+    lines = ["## What a threshold can reach", "",
+             "The most commands right that a rule's thresholds could give on the test split while keeping the",
+             "condition's targets (clean: non-command words and sentences acted on <= 2 % each, wrong <= 1 %; noise:",
+             "<= 3 % and <= 1 %), with the thresholds chosen **on the test split itself**: an upper bound, not a result.",
+             "Shipped rule: margin and class gap as in thresholds.toml, with the transcript check; min_margin swept",
+             f"over {FRONTIER_GRID['min_margin'][0]}..{FRONTIER_GRID['min_margin'][-1]} in steps of 0.1, min_class_gap over "
+             f"{', '.join(str(g) for g in FRONTIER_GRID['min_class_gap'][1:])} or none.",
+             "Margin only: the best-scored phrase acted on when its margin is at least a threshold, nothing else",
+             "(a single-threshold phrase scorer). Ranked first: any rule's ceiling.",
+             "Command: `python -m tools.bench_real frontier` (also written by `report`).", "",
+             "| condition | shipped thresholds | shipped rule, best thresholds | margin only, best threshold | "
+             "right class ranked first |", "| --- | --- | --- | --- | --- |"]
+    for cond in conditions:
+        now = count(test, cond, cache, matcher)
+        fits = [(per[cond], values) for values, _, _, per in rows if within_targets(per[cond], cond)]
+        best, at = max(fits, key=lambda f: f[0].right) if fits else (None, None)
+        single = [(margin_only(test, cond, cache, t), t) for t in FRONTIER_GRID["min_margin"]]
+        single = [(c, t) for c, t in single if within_targets(c, cond)]
+        best1, t1 = max(single, key=lambda f: f[0].right) if single else (None, None)
+
+        def cell(c: Counts | None, how: str) -> str:
+            if c is None:
+                return "no setting keeps the targets"
+            return (f"{pct(c.right, c.commands)}, {c.wrong} wrong, {c.words_acted}/{c.words} words, "
+                    f"{c.sentences_acted}/{c.sentences} sentences ({how})")
+
+        how = ""
+        if at:
+            gap = "no gap" if at["min_class_gap"] < -50 else f"gap {at['min_class_gap']}"
+            how = f"margin {at['min_margin']}, {gap}"
+        lines.append(f"| {cond} | {cell(now, 'as shipped')} | {cell(best, how)} | "
+                     f"{cell(best1, f'margin {t1}')} | {pct(now.ranked_first, now.commands)} |")
+    return "\n".join(lines)
+
+
 # -- stays -------------------------------------------------------------------------------------------
 def stays(engine: str = "whisper-score") -> str:
     """Among the utterances the shipped decision rejects: how many were nearest a stop (the engine's words or its
@@ -392,6 +467,8 @@ def report(engines: list[str]) -> str:
         lines += ["", "Decision time: from the end of the audio to the recognition, as recorded while the cache was made"
                   " (the machine was loaded by other work; `python -m tools.bench_real timing` measures it idle).", "",
                   "Settings tried and not taken, on the dev split: [real_variants.md](real_variants.md).", ""]
+        if engine in TUNED:
+            lines += [frontier(engine), ""]
     return "\n".join(lines) + "\n"
 
 
@@ -617,6 +694,8 @@ def main(argv: list[str] | None = None) -> int:
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
+    sub.add_parser("frontier", help="the most commands right any threshold could keep within the targets on test "
+                                    "(chosen on test itself: an upper bound; also a section of `report`)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
@@ -664,6 +743,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.stage == "stays":
         print(stays())
+        return 0
+    if args.stage == "frontier":
+        print(frontier())
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
     DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
