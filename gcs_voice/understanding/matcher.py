@@ -261,6 +261,9 @@ class Matcher:
             if value is None:
                 continue
             if kind == "max" and value > limit:
+                if name == "speech_beyond_s":  # the engine placed a command in longer speech
+                    return (f"not a command: heard '{recognition.text}', and the speech went on "
+                            f"({value:.1f} s more than the command)")
                 return f"'{recognition.text}' sounded unsure ({name} {value:.2f} > {limit:.2f})"
             if kind == "min" and value < limit:
                 if name == "class_gap":  # the phrase was heard, but another class (or a not-command) nearly as well
