@@ -112,8 +112,9 @@ def cells(c: Counts) -> list[str]:
 
 
 def evaluate(rows: list[Recording], recs: dict[Path, Recognition], matcher: str, floor: float,
-             split: str) -> Counts:
-    m = get_matcher(matcher, min_confidence=floor)
+             split: str, thresholds_path: Path | None = None) -> Counts:
+    m = get_matcher(matcher, min_confidence=floor,
+                    **({"thresholds_path": thresholds_path} if thresholds_path else {}))
     en = [load_language("en")]
     c = Counts()
     for row in rows:
@@ -135,19 +136,14 @@ def beyond_rows(rows: list[Recording], recs: dict[Path, Recognition], matcher: s
 
     from tools.bench_real import _with_thresholds
 
-    en = [load_language("en")]
     lines = ["| max_speech_beyond_s | split | commands right | wrong action | non-commands acted on | words | sentences |",
              "|---|---|---|---|---|---|---|"]
     scored = []
     with tempfile.TemporaryDirectory() as tmp:
         for n, limit in enumerate(BEYOND_LIMITS):
             path = _with_thresholds("evidence.sphinx", {"max_speech_beyond_s": limit}, Path(tmp), str(n))
-            m = get_matcher(matcher, min_confidence=floor, thresholds_path=path)
             for split in ("dev", "test"):
-                c = Counts()
-                for row in rows:
-                    if row.split == split:
-                        c.add(row.kind, row.action, m.decide(recs[row.path], en).action)
+                c = evaluate(rows, recs, matcher, floor, split, path)
                 label = "none" if limit >= 1e9 else f"{limit:g}"
                 lines.append(f"| {label} | {split} | " + " | ".join(cells(c)) + " |")
                 if split == "dev":
