@@ -20,6 +20,12 @@ no setting meets the targets on dev).
 ``report`` writes the tables with the count behind every percentage, and ``frontier`` (also a section of the
 report) the most any threshold of the rule could keep within the targets, chosen on the test split itself: an upper
 bound that tells whether better thresholds or a better model is what is missing.
+
+Another model (a stronger Whisper, say) is a variant, kept in its own cache and never mixed with the shipped one:
+
+    python -m tools.bench_real recognise --model PATH/faster-whisper-small --tag small
+    python -m tools.bench_real tune --tag small          # its own thresholds, on dev
+    python -m tools.bench_real frontier --tag small      # what it could reach on test
 """
 
 from __future__ import annotations
@@ -102,6 +108,20 @@ def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Reco
     return result, time.perf_counter() - t0
 
 
+#: the Whisper model the shipped figures and thresholds come from; another model is a variant (``--tag``)
+DEFAULT_MODEL = SHARED / "models" / "faster-whisper-base"
+
+
+def model_identity(model: str | None) -> str:
+    """What tells one model folder from another without reading it whole: the name and size of each file."""
+    if model is None:
+        return ""
+    folder = Path(model)
+    if not folder.is_dir():
+        return str(model)
+    return ";".join(f"{f.name}:{f.stat().st_size}" for f in sorted(folder.iterdir()) if f.is_file())
+
+
 def recognise(engine: str, model: str | None, conditions: list[str], split: str | None,
               overrides: dict[str, float | str] | None = None) -> None:
     from gcs_voice.asr.registry import load_recognizer
@@ -109,9 +129,10 @@ def recognise(engine: str, model: str | None, conditions: list[str], split: str 
     name, mode = ENGINES[engine]
     recognizer = load_recognizer(name, [load_language("en")], model=model, mode=mode)
     recognizer.settings.update(overrides or {})  # a variant of asr/engines.toml, cached under --tag
-    # the engine's settings and the dictionary it scores (its phrases and not-commands) make one configuration
+    # the model, the engine's settings and the dictionary it scores (its phrases and not-commands) make one
+    # configuration: a cached recognition of another one is made again
     dictionary = load_language("en")
-    config = hashlib.sha1((json.dumps(recognizer.settings, sort_keys=True, default=str)
+    config = hashlib.sha1((model_identity(model) + json.dumps(recognizer.settings, sort_keys=True, default=str)
                            + dictionary.path.read_text(encoding="utf-8")).encode()).hexdigest()[:12]
     cache = {k: row for k, row in load_cache(engine).items() if row.get("config") == config}
     CACHE_DIR.mkdir(parents=True, exist_ok=True)
@@ -680,13 +701,17 @@ def main(argv: list[str] | None = None) -> int:
     sub = parser.add_subparsers(dest="stage", required=True)
     rec = sub.add_parser("recognise", help="recognise every real file under every condition (cached)")
     rec.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
-    rec.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
+    rec.add_argument("--model", default=str(DEFAULT_MODEL),
+                     help="a faster-whisper model folder (default: ../shared's Whisper base); another model is a "
+                          "variant and needs --tag")
     rec.add_argument("--conditions", default=",".join(CONDITIONS))
     rec.add_argument("--split", choices=("dev", "test"))
     rec.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                      help="override an engine setting of asr/engines.toml for this run (use with --tag)")
     tun = sub.add_parser("tune", help="choose the engine's rejection threshold on the dev split")
-    for stage in (rec, tun):
+    fro = sub.add_parser("frontier", help="the most commands right any threshold could keep within the targets on "
+                                          "test (chosen on test itself: an upper bound; also a section of `report`)")
+    for stage in (rec, tun, fro):
         stage.add_argument("--tag", default="", help="a variant's cache, kept apart: out/bench/real/<engine>-<tag>.jsonl "
                                                      "(tune: choose on it; --write is refused)")
     tun.add_argument("--engine", choices=sorted(TUNED), default="whisper-score")
@@ -694,8 +719,6 @@ def main(argv: list[str] | None = None) -> int:
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
-    sub.add_parser("frontier", help="the most commands right any threshold could keep within the targets on test "
-                                    "(chosen on test itself: an upper bound; also a section of `report`)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
@@ -710,6 +733,10 @@ def main(argv: list[str] | None = None) -> int:
     global _TAG
     _TAG = f"-{args.tag}" if getattr(args, "tag", "") else ""
     if args.stage == "recognise":
+        if (args.engine.startswith("whisper") and not _TAG
+                and model_identity(args.model) != model_identity(str(DEFAULT_MODEL))):
+            parser.error("another model than the shipped figures' is a variant: give it --tag NAME, so that its "
+                         "recognitions are kept apart (then tune --tag NAME, frontier --tag NAME)")
         unknown = set(args.conditions.split(",")) - set(CONDITIONS)
         if unknown:
             parser.error(f"unknown conditions {sorted(unknown)} (known: {', '.join(CONDITIONS)})")
@@ -745,6 +772,11 @@ def main(argv: list[str] | None = None) -> int:
         print(stays())
         return 0
     if args.stage == "frontier":
+        if not load_cache("whisper-score"):
+            print(f"bench_real: error: no recognitions in {cache_path('whisper-score').relative_to(REPO)} "
+                  f"(run `python -m tools.bench_real recognise{' --tag ' + args.tag if args.tag else ''}` first)",
+                  file=sys.stderr)
+            return 2
         print(frontier())
         return 0
     DOC.parent.mkdir(parents=True, exist_ok=True)
