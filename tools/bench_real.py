@@ -245,6 +245,15 @@ def _with_thresholds(table: str, values: dict[str, float], directory: Path, name
     return path
 
 
+def within_targets(c: Counts, group: str, safety: float = 1.0) -> bool:
+    """The issue's limits of a condition group ("clean" or "noisy", :data:`LIMITS`): non-command words and
+    sentences acted on (each, held to ``safety`` times their target) and wrong actions."""
+    acted, wrong = LIMITS[group]
+    acted *= safety
+    return (c.words_acted <= acted * c.words and c.sentences_acted <= acted * c.sentences
+            and c.wrong <= wrong * c.commands)
+
+
 #: what a decision is worth in the objective: a wrong action is worse than none, an action on other speech too
 WRONG_COST, ACTED_COST = 3, 2
 
@@ -271,14 +280,7 @@ def sweep(cache: dict[str, dict], dev: list[Recording], engine: str = "whisper-s
             values = dict(zip(grid, combo))
             matcher = get_matcher(MATCHER, thresholds_path=_with_thresholds(table, values, Path(tmp), str(n)))
             per = {cond: count(dev, cond, cache, matcher) for cond in conditions}
-            ok = True
-            for cond, c in per.items():
-                if cond not in ("clean", "kitchen20"):
-                    continue
-                acted_limit, wrong_limit = LIMITS["clean"]
-                acted_limit *= DEV_SAFETY
-                ok &= (c.words_acted <= acted_limit * c.words and c.sentences_acted <= acted_limit * c.sentences
-                       and c.wrong <= wrong_limit * c.commands)
+            ok = all(within_targets(c, "clean", DEV_SAFETY) for cond, c in per.items() if cond in ("clean", "kitchen20"))
             rows.append((values, ok, sum(objective(c) for c in per.values()), per))
     # One grid step looser in any key must stay within the limits too: a setting on the edge of the limits
     # would leave them when one dev file moved (a rebuilt cache on another machine moves a few).
@@ -362,11 +364,6 @@ FRONTIER_GRID = {"min_margin": [round(x / 10, 1) for x in range(-40, 1)],
 FRONTIER_CONDITIONS = ("clean", "kitchen20", "kitchen12", "kitchen6")
 
 
-def within_targets(c: Counts, condition: str) -> bool:
-    """The issue's limits on one condition: non-command words and sentences acted on (each), wrong actions."""
-    acted, wrong = LIMITS["clean" if condition == "clean" else "noisy"]
-    return (c.words_acted <= acted * c.words and c.sentences_acted <= acted * c.sentences
-            and c.wrong <= wrong * c.commands)
 
 
 def margin_only(recs: list[Recording], condition: str, cache: dict[str, dict], min_margin: float) -> Counts:
@@ -405,10 +402,11 @@ def frontier(engine: str = "whisper-score") -> str:
              "right class ranked first |", "| --- | --- | --- | --- | --- |"]
     for cond in conditions:
         now = count(test, cond, cache, matcher)
-        fits = [(per[cond], values) for values, _, _, per in rows if within_targets(per[cond], cond)]
+        group = "clean" if cond == "clean" else "noisy"
+        fits = [(per[cond], values) for values, _, _, per in rows if within_targets(per[cond], group)]
         best, at = max(fits, key=lambda f: f[0].right) if fits else (None, None)
         single = [(margin_only(test, cond, cache, t), t) for t in FRONTIER_GRID["min_margin"]]
-        single = [(c, t) for c, t in single if within_targets(c, cond)]
+        single = [(c, t) for c, t in single if within_targets(c, group)]
         best1, t1 = max(single, key=lambda f: f[0].right) if single else (None, None)
 
         def cell(c: Counts | None, how: str) -> str:
