@@ -21,8 +21,10 @@ pytestmark = [pytest.mark.slow]
 
 
 def _stamp(t: float) -> float:
-    """A UNIX time as a .tlog stamps it (whole microseconds), to find the record a time stamped."""
-    return math.floor(t * 1e6) / 1e6 - 1e-9
+    """A UNIX time as a .tlog stamps it (whole microseconds), less half a microsecond: the bound that finds the
+    record ``t`` stamped. pymavlink reads a stamp back as ``usec * 1e-6``, which can be one float step (0.24 us
+    at today's epoch) below ``usec / 1e6``."""
+    return (math.floor(t * 1e6) - 0.5) / 1e6
 
 
 def _still(s) -> bool:
@@ -49,6 +51,25 @@ def _rejected_sentence(real_speech_dir: Path) -> Path:
         if not matcher.decide(recognition, dictionaries).accepted and not heard & stop_phrases:
             return rec.path
     pytest.fail("no held-out sentence is rejected by PocketSphinx")
+
+
+def test_a_record_is_found_by_the_time_that_stamped_it(tmp_path: Path) -> None:
+    """A fast decision leaves only the pause's own setpoint before "heard": ``_stamp`` must find that record."""
+    import random
+
+    from gcs_voice.link.tlog import TlogWriter
+    from pymavlink import mavutil
+    from pymavlink.dialects.v20 import ardupilotmega as mavlink
+
+    mav = mavlink.MAVLink(None, srcSystem=255)
+    times = [1.7e9 + random.Random(7).random() * 1e8 + i * 0.001 for i in range(300)]
+    writer = TlogWriter(tmp_path / "t.tlog")
+    for t in times:
+        writer.write(mav.heartbeat_encode(6, 8, 0, 0, 0).pack(mav), t)
+    writer.close()
+    log = mavutil.mavlink_connection(str(tmp_path / "t.tlog"))
+    read = [log.recv_match()._timestamp for _ in times]
+    assert all(_stamp(t) <= r < _stamp(t + 1e-6) for t, r in zip(times, read))
 
 
 def test_speech_pauses_the_motion_until_it_is_decided(tmp_path: Path, real_speech_dir: Path) -> None:
