@@ -364,8 +364,6 @@ FRONTIER_GRID = {"min_margin": [round(x / 10, 1) for x in range(-40, 1)],
 FRONTIER_CONDITIONS = ("clean", "kitchen20", "kitchen12", "kitchen6")
 
 
-
-
 def margin_only(recs: list[Recording], condition: str, cache: dict[str, dict], min_margin: float) -> Counts:
     """The plainest rule: act on the best-scored phrase's class when its margin (its score less that of Whisper's
     own transcript) is at least ``min_margin``; no class gap, no transcript check."""
@@ -719,7 +717,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
-    tim.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
+    tim.add_argument("--model", default=str(DEFAULT_MODEL))
     tim.add_argument("--n", type=int, default=60)
     tim.add_argument("--hogs", type=int, default=0,
                      help="busy-loop processes beside the file timing (2: both cores of this machine busy)")
