@@ -74,6 +74,8 @@ class SileroSettings:
     post_pad_s: float = 0.1
     #: audio the listener (``on_speech``: the stop spotter) hears before the detected start (at least pre_roll_s)
     listen_pre_roll_s: float = 0.2
+    #: how far back the network's state may remember (0: forever, the state drifts in long noise)
+    memory_s: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -149,28 +151,60 @@ def _silero_session(path: str) -> Any:
 
 
 class SileroVad:
-    """Speech probability per 32 ms window of a stream; the network's state runs on across windows."""
+    """Speech probability per 32 ms window of a stream, from a network whose memory is bounded.
 
-    def __init__(self, model: Path | None = None) -> None:
+    Silero is a recurrent network. Carried across minutes of noise, its state drifts until speech no
+    longer registers: in kitchen noise at 12 dB, speech that peaks at P=0.9 from a fresh state peaks
+    below the start threshold after some minutes (the segmenter goes deaf). With ``memory_s`` > 0 two
+    copies of the state run side by side, each started afresh every ``2 * memory_s`` seconds, half a period
+    apart, and the answer comes from the copy that has run longer: every probability then depends on
+    between ``memory_s`` and ``2 * memory_s`` seconds of the stream, never on what came before, so the
+    segmenter hears speech the same after an hour of noise as after one minute. ``memory_s`` = 0 carries
+    one state forever (the network as it was trained and shipped; for comparison).
+    """
+
+    def __init__(self, model: Path | None = None, memory_s: float = 0.0) -> None:
         path = model or silero_model_path()
         if path is None:
             from gcs_voice.errors import ModelError
 
             raise ModelError("the Silero VAD model was not found (it ships with faster-whisper)")
         self.session = _silero_session(str(path))
+        #: windows between the restarts of one copy of the state (0: never restarted)
+        self.period = 2 * max(0, round(memory_s * SAMPLE_RATE / SILERO_WINDOW))
         self.reset()
 
     def reset(self) -> None:
-        self.h = np.zeros((1, 1, 128), dtype=np.float32)
-        self.c = np.zeros((1, 1, 128), dtype=np.float32)
+        self.states = [self._zero_state() for _ in range(2 if self.period else 1)]
         self.context = np.zeros(SILERO_CONTEXT, dtype=np.float32)
+        self.windows = 0
+
+    @staticmethod
+    def _zero_state() -> tuple[np.ndarray, np.ndarray]:
+        return np.zeros((1, 1, 128), dtype=np.float32), np.zeros((1, 1, 128), dtype=np.float32)
 
     def probability(self, window: np.ndarray) -> float:
         """P(speech) of one 512-sample float window in [-1, 1]."""
         x = np.concatenate([self.context, window.astype(np.float32)])[None, :]
-        out, self.h, self.c = self.session.run(None, {"input": x, "h": self.h, "c": self.c})
         self.context = x[0, -SILERO_CONTEXT:]
-        return float(np.asarray(out).reshape(-1)[0])
+        i, self.windows = self.windows, self.windows + 1
+        if not self.period:
+            out, h, c = self.session.run(None, {"input": x, "h": self.states[0][0], "c": self.states[0][1]})
+            self.states[0] = (h, c)
+            return float(np.asarray(out).reshape(-1)[0])
+        half = self.period // 2
+        ages = (i % self.period, (i - half) % self.period)  # windows each copy has run since its restart
+        answer = 0.0
+        for k, age in enumerate(ages):
+            if age == 0:
+                self.states[k] = self._zero_state()
+            if k == 1 and i < half:
+                continue  # the second copy starts half a period in
+            out, h, c = self.session.run(None, {"input": x, "h": self.states[k][0], "c": self.states[k][1]})
+            self.states[k] = (h, c)
+            if age == max(ages) or (k == 0 and i < half):
+                answer = float(np.asarray(out).reshape(-1)[0])
+        return answer
 
 
 #: Told each piece of an utterance while it is still being spoken (PCM), and None when it is over.
@@ -195,7 +229,7 @@ def segment_utterances(chunks: Iterable[AudioChunk], settings: VadSettings | Non
     tentative = on_tentative or (lambda utt: None)
     if s.method == "silero":
         try:
-            vad = SileroVad()
+            vad = SileroVad(memory_s=s.silero.memory_s)
         except Exception as exc:  # noqa: BLE001 - no model or no onnxruntime: the energy VAD still works
             warnings.warn(f"Silero VAD unavailable ({exc}); using the energy VAD", RuntimeWarning, stacklevel=2)
         else:
