@@ -1,19 +1,26 @@
 """Live listening in noise: continuous streams of real speech over real noise, fed to ``gcs-voice recognize --segment``.
 
-A microphone in a room hears commands and other talk at random pauses, over noise that never stops.
-This builds such streams from the held-out test part of the real recordings: ``../shared/speech`` as
-``tools.real_speech.load_recordings(split="test")`` splits it, the one speaker split of every
-real-speech tool (this file has no split of its own), so no speaker heard here was heard by any tuning.
-It mixes them over the real noises of ``../shared/noise`` at 20/12/6 dB SNR (speech level measured over
-its voiced frames, noise over the whole track), writes the stream WAV
-and a truth TSV, and feeds the stream to ``gcs-voice recognize --segment --json`` AS ONE FILE in a real
-subprocess. Then it counts, per noise and SNR:
+A microphone in a room hears commands and other talk at random pauses, over noise that never stops,
+from people at different distances, for a whole flight. This builds such streams from the held-out test
+part of the real recordings: ``../shared/speech`` as ``tools.real_speech.load_recordings(split="test")``
+splits it, the one speaker split of every real-speech tool (this file has no split of its own), so no
+speaker heard here was heard by any tuning. It mixes them over the real noises of ``../shared/noise`` (one
+noise, or ``mixed``: the four in turn, changing every ``--noise-change-s`` seconds with a 1 s crossfade)
+at a stated SNR (speech level measured over its voiced frames, noise over the whole track; with
+``--level-spread D`` each utterance is D dB louder or quieter at random around that level, so its own
+SNR varies), writes the stream WAV and a truth TSV, and feeds the stream to
+``gcs-voice recognize --segment --json`` AS ONE FILE in a real subprocess. Then it counts, per stream:
 
-- commands right, wrong (another action), missed (no action);
-- false actions: any action during non-command speech, or during noise alone.
+- commands right, wrong (another action), missed (no action), and of the missed those that produced no
+  segment at all (the segmenter never heard them);
+- false actions: any action during non-command speech, or during noise alone;
+- the longest deaf stretch: the longest time from the start of an utterance whose speech is at least
+  10 dB above the noise around it to the end of a later one, all such utterances in between (both
+  included) producing no segment (0 when every such utterance produced one).
 
     python -m tools.bench_stream                    # clean + kitchen 20/12/6 dB, 60 utterances each
     python -m tools.bench_stream --noises all       # the four real noises
+    python -m tools.bench_stream --room             # the room as issue 30 sets it (see ROOM below)
     python -m tools.bench_stream --quick            # 12 utterances, clean + kitchen 12 dB
     python -m tools.bench_stream --vad energy       # the fallback segmenter, for comparison
 
@@ -106,11 +113,21 @@ def choose(clips: list[Recording], count: int, rng: np.random.Generator) -> list
     return [picked[i] for i in rng.permutation(len(picked))]
 
 
-def build_stream(clips: list[Recording], noise: np.ndarray | None, snr_db: float | None, seed: int,
-                 pause_s: tuple[float, float] = (1.5, 6.0)) -> tuple[np.ndarray, list[Placed]]:
-    """Clips at random pauses (seeded) over a noise track; each clip at SPEECH_DBFS over its voiced part."""
+def build_stream(clips: list[Recording], noise: np.ndarray | list[np.ndarray] | None, snr_db: float | None,
+                 seed: int, pause_s: tuple[float, float] = (1.5, 6.0), level_spread_db: float = 0.0,
+                 noise_change_s: float = 60.0) -> tuple[np.ndarray, list[Placed]]:
+    """Clips at random pauses (seeded) over a noise track; each clip at SPEECH_DBFS over its voiced part
+    (give or take up to ``level_spread_db``, uniformly: people at different distances). A list of noises
+    takes turns every ``noise_change_s`` seconds."""
+    speech, placed, rng = lay_clips(clips, seed, pause_s, level_spread_db)
+    return under_noise(speech, noise, snr_db, rng, noise_change_s), placed
+
+
+def lay_clips(clips: list[Recording], seed: int, pause_s: tuple[float, float] = (1.5, 6.0),
+              level_spread_db: float = 0.0) -> tuple[np.ndarray, list[Placed], np.random.Generator]:
+    """The speech track alone: clips at their levels and random pauses; the generator goes on to the noise."""
     rng = np.random.default_rng(seed)
-    pieces, placed, t = [], [], 0
+    pieces, placed = [], []
     lead = int(rng.uniform(*pause_s) * RATE)
     pieces.append(np.zeros(lead))
     t = lead
@@ -118,11 +135,13 @@ def build_stream(clips: list[Recording], noise: np.ndarray | None, snr_db: float
         x = read_wav(clip.path)
         _, v0, v1 = voiced_level(x)
         x = at_speech_level(x)
+        if level_spread_db:
+            x = x * 10 ** (rng.uniform(-level_spread_db, level_spread_db) / 20)
         placed.append(Placed(clip, t / RATE, (t + x.size) / RATE, (t + v0) / RATE, (t + v1) / RATE))
         pause = int(rng.uniform(*pause_s) * RATE)
         pieces += [x, np.zeros(pause)]
         t += x.size + pause
-    return under_noise(np.concatenate(pieces), noise, snr_db, rng), placed
+    return np.concatenate(pieces), placed, rng
 
 
 def at_speech_level(x: np.ndarray) -> np.ndarray:
@@ -131,17 +150,38 @@ def at_speech_level(x: np.ndarray) -> np.ndarray:
     return x * (10 ** (SPEECH_DBFS / 20) / max(level, 1e-6))
 
 
-def under_noise(speech: np.ndarray, noise: np.ndarray | None, snr_db: float | None,
-                rng: np.random.Generator) -> np.ndarray:
+def noise_track(noise: np.ndarray | list[np.ndarray], n: int, snr_db: float, rng: np.random.Generator,
+                change_s: float = 60.0) -> np.ndarray:
+    """``n`` samples of noise ``snr_db`` below SPEECH_DBFS, each noise from a random point, looped; a list of
+    noises takes turns every ``change_s`` seconds (1 s crossfades), each at that level."""
+    target = 10 ** (SPEECH_DBFS / 20) / 10 ** (snr_db / 20)
+
+    def level(track: np.ndarray) -> np.ndarray:
+        return track * target / max(float(np.sqrt(np.mean(track**2))), 1e-9)
+
+    if isinstance(noise, np.ndarray):
+        start = int(rng.integers(0, noise.size))
+        return level(np.resize(np.roll(noise, -start), n))
+    tracks = [level(np.resize(np.roll(x, -int(rng.integers(0, x.size))), n)) for x in noise]
+    period, fade = int(change_s * RATE), RATE
+    t = np.arange(n)
+    turn = t // period
+    # the last second of each turn fades (equal power) into the next noise
+    alpha = np.clip((t - turn * period - (period - fade)) / fade, 0.0, 1.0)
+    out = np.zeros(n)
+    for k, track in enumerate(tracks):
+        out += np.where(turn % len(tracks) == k, np.sqrt(1 - alpha), 0.0) * track
+        out += np.where((turn + 1) % len(tracks) == k, np.sqrt(alpha), 0.0) * track
+    return out
+
+
+def under_noise(speech: np.ndarray, noise: np.ndarray | list[np.ndarray] | None, snr_db: float | None,
+                rng: np.random.Generator, change_s: float = 60.0) -> np.ndarray:
     """A stream of speech at SPEECH_DBFS with the noise (from a random point, looped) under all of it,
     ``snr_db`` below the speech's level; clean when either is None."""
     if noise is None or snr_db is None:
         return np.clip(speech, -1, 1)
-    target = 10 ** (SPEECH_DBFS / 20)
-    start = int(rng.integers(0, noise.size))
-    track = np.resize(np.roll(noise, -start), speech.size)
-    track = track * (target / 10 ** (snr_db / 20)) / max(float(np.sqrt(np.mean(track**2))), 1e-9)
-    return np.clip(speech + track, -1, 1)
+    return np.clip(speech + noise_track(noise, speech.size, snr_db, rng, change_s), -1, 1)
 
 
 def write_truth(path: Path, placed: list[Placed]) -> None:
@@ -195,14 +235,51 @@ class Counts:
     right: int = 0
     wrong: int = 0
     missed: int = 0
+    unsegmented: int = 0  # missed commands that produced no segment at all
     others: int = 0  # non-command utterances
     false_speech: int = 0  # actions during non-command speech
     false_noise: int = 0  # actions during noise alone
     minutes: float = 0.0
+    deaf_s: float = 0.0  # the longest deaf stretch (see the module's docstring)
 
 
-def score(rows: list[dict], placed: list[Placed], total_s: float) -> Counts:
-    """Give each segment to the utterance it overlaps most (none: noise alone) and count the outcomes."""
+#: speech at least this far above the noise around it must be heard (the deaf-stretch rule)
+AUDIBLE_DB = 10.0
+
+
+def overlaps(a0: float, a1: float, b0: float, b1: float) -> bool:
+    return min(a1, b1) - max(a0, b0) > 0
+
+
+def local_snr_db(speech: np.ndarray, noise: np.ndarray | None, p: Placed) -> float:
+    """The utterance's voiced level over the noise's level around it (its voiced span and 0.5 s either side)."""
+    if noise is None:
+        return float("inf")
+    v0, v1 = int(p.voiced_start_s * RATE), int(p.voiced_end_s * RATE)
+    s_rms = float(np.sqrt(np.mean(speech[v0:v1] ** 2) + 1e-12))
+    n_rms = float(np.sqrt(np.mean(noise[max(0, v0 - RATE // 2):v1 + RATE // 2] ** 2) + 1e-12))
+    return 20 * np.log10(s_rms / n_rms)
+
+
+def deaf_stretch_s(placed: list[Placed], heard: list[bool], audible: list[bool]) -> float:
+    """Longest time over which every audible utterance produced no segment (inaudible ones do not count)."""
+    longest, run_start = 0.0, None
+    for p, h, a in zip(placed, heard, audible):
+        if not a:
+            continue
+        if h:
+            run_start = None
+            continue
+        run_start = p.voiced_start_s if run_start is None else run_start
+        longest = max(longest, p.voiced_end_s - run_start)
+    return longest
+
+
+def score(rows: list[dict], placed: list[Placed], total_s: float,
+          audible: list[bool] | None = None) -> Counts:
+    """Give each segment to the utterance it overlaps most (none: noise alone) and count the outcomes.
+
+    ``audible``: which utterances the deaf-stretch rule counts (default: all)."""
     c = Counts(segments=len(rows), minutes=total_s / 60)
     actions: dict[int, list[str]] = {i: [] for i in range(len(placed))}
     for row in rows:
@@ -216,6 +293,7 @@ def score(rows: list[dict], placed: list[Placed], total_s: float) -> Counts:
                 c.false_noise += 1
             else:
                 actions[best].append(row["action"])
+    heard = [any(overlaps(r["start_s"], r["end_s"], p.voiced_start_s, p.voiced_end_s) for r in rows) for p in placed]
     for i, p in enumerate(placed):
         got = actions[i]
         if p.clip.action is None:
@@ -229,6 +307,8 @@ def score(rows: list[dict], placed: list[Placed], total_s: float) -> Counts:
                 c.right += 1
             else:
                 c.missed += 1
+                c.unsegmented += not heard[i]
+    c.deaf_s = deaf_stretch_s(placed, heard, audible if audible is not None else [True] * len(placed))
     return c
 
 
@@ -236,12 +316,53 @@ def pct(n: int, d: int) -> str:
     return f"{100 * n / d:.1f} % ({n}/{d})" if d else "-"
 
 
+@dataclass(frozen=True)
+class StreamSpec:
+    """One stream to build and score: its noise ('none', a NOISE_FILES key or 'mixed'), SNR, level spread, length."""
+
+    noise: str
+    snr_db: float | None
+    spread_db: float = 0.0
+    minutes: float | None = None  # None: --utterances utterances
+
+    @property
+    def label(self) -> str:
+        if self.snr_db is None:
+            base = "clean"
+        else:
+            base = f"{self.noise}{self.snr_db:g}"
+        return base + (f"_spread{self.spread_db:g}" if self.spread_db else "") + \
+            (f"_{self.minutes:g}min" if self.minutes else "")
+
+
+#: issue 30's room: 5-minute streams at 12 dB over each noise and over the four in turn, at one level and
+#: with levels varying +-6 dB, and 30-minute streams (a whole flight) over the four in turn, both ways
+ROOM = [*(StreamSpec(n, 12.0, 0.0, 5.0) for n in [*NOISE_FILES, "mixed"]),
+        *(StreamSpec(n, 12.0, 6.0, 5.0) for n in [*NOISE_FILES, "mixed"]),
+        StreamSpec("mixed", 12.0, 0.0, 30.0), StreamSpec("mixed", 12.0, 6.0, 30.0)]
+
+
+def utterances_for(minutes: float, pause_s: tuple[float, float]) -> int:
+    """About how many utterances fill ``minutes`` at these pauses (a clip lasts about 1.2 s on average)."""
+    return max(1, round(minutes * 60 / (sum(pause_s) / 2 + 1.2)))
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    p.add_argument("--noises", default="kitchen", help="comma list of " + ", ".join(NOISE_FILES) + " or 'all'")
+    p.add_argument("--noises", default="kitchen",
+                   help="comma list of " + ", ".join(NOISE_FILES) + ", mixed (the four in turn), or 'all'")
     p.add_argument("--snrs", default="20,12,6", help="SNRs in dB (default 20,12,6)")
     p.add_argument("--no-clean", action="store_true", help="skip the stream without added noise")
     p.add_argument("--utterances", type=int, default=60)
+    p.add_argument("--minutes", type=float, default=None,
+                   help="streams of about this length (instead of --utterances)")
+    p.add_argument("--level-spread", type=float, default=0.0, metavar="DB",
+                   help="each utterance up to DB louder or quieter than the others (people at different distances)")
+    p.add_argument("--pauses", default="1.5,6", metavar="MIN,MAX", help="pauses between utterances, s")
+    p.add_argument("--noise-change-s", type=float, default=60.0, help="with 'mixed': each noise's turn, s")
+    p.add_argument("--room", action="store_true",
+                   help="the room of issue 30: 5-min streams at 12 dB over every noise and 'mixed', one level and "
+                        "+-6 dB, and 30-min 'mixed' streams, pauses 1.5-4 s (ignores --noises/--snrs/--minutes)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--quick", action="store_true", help="12 utterances, clean + kitchen 12 dB")
     p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"),
@@ -257,63 +378,88 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.quick:
         args.utterances, args.noises, args.snrs = 12, "kitchen", "12"
-    noises = list(NOISE_FILES) if args.noises == "all" else [n for n in args.noises.split(",") if n]
-    unknown = set(noises) - set(NOISE_FILES)
-    if unknown:
-        raise SystemExit(f"bench_stream: unknown noise(s) {', '.join(sorted(unknown))}")
-    snrs = [float(s) for s in args.snrs.split(",") if s]
-    conditions: list[tuple[str, float | None]] = [] if args.no_clean else [("none", None)]
-    conditions += [(n, s) for n in noises for s in snrs]
+    pause_s = tuple(float(v) for v in args.pauses.split(","))
+    if len(pause_s) != 2 or not 0 < pause_s[0] <= pause_s[1]:
+        raise SystemExit("bench_stream: --pauses is MIN,MAX in seconds")
+    if args.room:
+        specs = list(ROOM)
+        pause_s = (1.5, 4.0)
+    else:
+        noises = [*NOISE_FILES] if args.noises == "all" else [n for n in args.noises.split(",") if n]
+        unknown = set(noises) - {*NOISE_FILES, "mixed"}
+        if unknown:
+            raise SystemExit(f"bench_stream: unknown noise(s) {', '.join(sorted(unknown))}")
+        snrs = [float(v) for v in args.snrs.split(",") if v]
+        specs = [] if args.no_clean else [StreamSpec("none", None, args.level_spread, args.minutes)]
+        specs += [StreamSpec(n, v, args.level_spread, args.minutes) for n in noises for v in snrs]
     # the Whisper model goes only to an engine that takes it (PocketSphinx's model is in its wheel)
     model = ["--model", args.model] if args.engine in (None, "whisper") else []
     extra = model + (["--engine", args.engine] if args.engine else []) + \
         (["--vad", args.vad] if args.vad else []) + \
         (["--vad-settings", str(Path(args.vad_settings).resolve())] if args.vad_settings else [])
     work = Path(args.work)
-    clips = choose(load_recordings(split=args.split), args.utterances, np.random.default_rng(args.seed))
+    recordings = load_recordings(split=args.split)
+    noise_audio = {name: read_wav(SHARED / "noise" / f) for name, f in NOISE_FILES.items()}
     lines = []
     shown_cmd = ""
-    for noise_name, snr in conditions:
-        noise = read_wav(SHARED / "noise" / NOISE_FILES[noise_name]) if snr is not None else None
-        x, placed = build_stream(clips, noise, snr, args.seed)
-        label = "clean" if snr is None else f"{noise_name}{snr:g}"
-        wav = work / f"stream_{label}_n{args.utterances}_s{args.seed}{'' if args.split == 'test' else '_' + args.split}.wav"
+    for spec in specs:
+        n_utt = utterances_for(spec.minutes, pause_s) if spec.minutes else args.utterances
+        clips = choose(recordings, n_utt, np.random.default_rng(args.seed))
+        speech, placed, rng = lay_clips(clips, args.seed, pause_s, spec.spread_db)
+        noise = None
+        if spec.snr_db is not None:
+            source = list(noise_audio.values()) if spec.noise == "mixed" else noise_audio[spec.noise]
+            noise = noise_track(source, speech.size, spec.snr_db, rng, args.noise_change_s)
+        x = np.clip(speech + (noise if noise is not None else 0.0), -1, 1)
+        audible = [local_snr_db(speech, noise, pl) >= AUDIBLE_DB for pl in placed]
+        pauses = "" if pause_s == (1.5, 6.0) else f"_p{pause_s[0]:g}-{pause_s[1]:g}"
+        wav = work / (f"stream_{spec.label}_n{n_utt}_s{args.seed}{pauses}"
+                      f"{'' if args.split == 'test' else '_' + args.split}.wav")
         write_wav(wav, x)
         write_truth(wav.with_suffix(".tsv"), placed)
         rows, shown_cmd, seconds = recognize(wav, extra, work / "cache")
-        c = score(rows, placed, x.size / RATE)
-        line = (f"| {'none' if snr is None else NOISE_FILES[noise_name]} | {'-' if snr is None else f'{snr:g}'} | "
+        c = score(rows, placed, x.size / RATE, audible)
+        noise_name = {"none": "none", "mixed": "all four in turn"}.get(spec.noise, NOISE_FILES.get(spec.noise, ""))
+        line = (f"| {noise_name} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
+                f"{'±' + format(spec.spread_db, 'g') if spec.spread_db else '0'} | "
                 f"{c.minutes:.1f} | {c.segments} / {len(placed)} | {pct(c.right, c.commands)} | "
-                f"{c.wrong} | {c.missed} | {c.false_speech} / {c.others} | {c.false_noise} | "
-                f"{(c.false_speech + c.false_noise) / c.minutes * 5:.1f} | {seconds:.0f} |")
+                f"{c.wrong} | {c.missed} | {c.unsegmented} | {c.false_speech} / {c.others} | {c.false_noise} | "
+                f"{(c.false_speech + c.false_noise) / c.minutes * 5:.1f} | {c.right / c.minutes:.1f} | "
+                f"{c.deaf_s:.1f} ({sum(audible)}) | {seconds:.0f} |")
         print(line, flush=True)
         lines.append(line)
+    spreads = sorted({sp.spread_db for sp in specs})
     report = "\n".join([
         "# Live listening: continuous streams of real speech over real noise",
         "",
         "Command: `" + " ".join(["python -m tools.bench_stream",
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
-        f"Each stream: {args.utterances} real utterances from the "
+        "Each stream: real utterances from the "
         + ("held-out test part of `../shared/speech` (the test split of `python -m tools.real_speech`, speakers no "
            "tuning heard; " if args.split == "test" else "dev part of `../shared/speech` (the split settings are "
            "chosen on; ") + "70 % commands, "
         "15 % non-command words, 15 % sentences), "
-        f"seed {args.seed}, pauses 1.5-6 s, each utterance at {SPEECH_DBFS:g} dBFS over its voiced frames; the real "
-        "noise under the whole stream at the stated SNR. The stream WAV is fed as one file to "
+        f"seed {args.seed}, pauses {pause_s[0]:g}-{pause_s[1]:g} s, each utterance at {SPEECH_DBFS:g} dBFS over its "
+        "voiced frames"
+        + (" (level spread ±D: each utterance up to D dB louder or quieter, uniformly)" if any(spreads) else "")
+        + "; the real noise under the whole stream at the stated SNR below that level (all four in turn: each "
+        f"for {args.noise_change_s:g} s, 1 s crossfades). The stream WAV is fed as one file to "
         f"`{shown_cmd.rsplit(' ', 1)[0]} STREAM.wav`.",
         "A command is right when its segments carry its action and no other, wrong when any other action, missed "
-        "when none. A false action is an action during non-command speech (words, sentences) or noise alone.",
+        "when none; *no segment*: missed commands the segmenter never cut (no segment overlaps their speech). A "
+        "false action is an action during non-command speech (words, sentences) or noise alone. *Deaf stretch*: "
+        f"the longest time over which every utterance at least {AUDIBLE_DB:g} dB above the noise around it "
+        "produced no segment (in brackets: how many utterances were that audible).",
         f"Segmenter: {args.vad or 'silero'}, settings "
         f"{args.vad_settings or 'gcs_voice/audio/vad.toml'}; no stop spotter here (`recognize` is the main "
-        "recogniser only; the spotter is measured in stop.md). A missed command is either not segmented (fewer "
-        "segments than utterances) or segmented and rejected by the recogniser's decision.",
+        "recogniser only; the spotter is measured in stop.md).",
         f"Load average at the end of the run: {os.getloadavg()[0]:.1f} (2 cores).",
         "",
-        "| noise | SNR dB | minutes | segments / utterances | commands right | wrong | missed | "
-        "false actions on speech / non-command utterances | false actions on noise alone | false actions per 5 min | "
-        "run s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|",
+        "| noise | SNR dB | level spread dB | minutes | segments / utterances | commands right | wrong | missed | "
+        "no segment | false actions on speech / non-command utterances | false actions on noise alone | "
+        "false actions per 5 min | commands right per min | longest deaf stretch s (audible) | run s |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         *lines, "",
     ])
     out = args.out or str(ROOT / "docs" / "bench" / "stream.md")
