@@ -389,3 +389,20 @@ def test_features_are_computed_with_one_blas_thread(whisper_score, whisper, monk
     recognizer.decode(pcm, "en")
     assert seen and all(threads == {1} for threads in seen)
     assert blas_threads() == before
+
+
+@pytest.mark.slow
+def test_a_clatter_of_dishes_does_not_fly(whisper_score):
+    """Noise alone never acts. On a dev-part stream the segmenter cut this clatter of the real kitchen
+    recording (../shared/noise, 12 dB below the speech level); Whisper wrote "The" for it, far below its own
+    confidence for anything, while the phrase "ahead" scored above that and flew go_forward. What Whisper
+    could not write down is no action."""
+    from conftest import shared_path
+    from tools.bench_stream import read_wav
+
+    noise = read_wav(shared_path("noise", "doing_the_dishes.wav"))
+    pcm = (noise[196153:196153 + 6656] * 0.3365 * 32767).astype("<i2").tobytes()
+    result, decision = _decide(whisper_score, pcm, "en")
+    assert decision.action is None, decision
+    assert result.extra["free_logprob"] < -5.0, result  # the case this guards: Whisper unsure of its own words
+    assert "nothing clear" in decision.reason, decision.reason

@@ -269,6 +269,9 @@ class Matcher:
                 if name == "class_gap":  # the phrase was heard, but another class (or a not-command) nearly as well
                     return (f"unsure: heard '{recognition.transcript or recognition.text}', as '{recognition.text}' "
                             f"but nearly as much as something else ({name} {value:.2f} < {limit:.2f})")
+                if name == "free_logprob":  # the engine could not write down what it heard: noise, most often
+                    return (f"nothing clear: heard '{recognition.transcript or recognition.text}' too unsurely to "
+                            f"be anything ({name} {value:.2f} < {limit:.2f})")
                 if recognition.transcript:  # the engine heard something else than the phrase
                     return (f"not a command: heard '{recognition.transcript}', not '{recognition.text}' "
                             f"({name} {value:.2f} < {limit:.2f})")
