@@ -324,6 +324,7 @@ class StreamSpec:
     snr_db: float | None
     spread_db: float = 0.0
     minutes: float | None = None  # None: --utterances utterances
+    pauses: tuple[float, float] | None = None  # None: --pauses
 
     @property
     def label(self) -> str:
@@ -332,14 +333,20 @@ class StreamSpec:
         else:
             base = f"{self.noise}{self.snr_db:g}"
         return base + (f"_spread{self.spread_db:g}" if self.spread_db else "") + \
-            (f"_{self.minutes:g}min" if self.minutes else "")
+            (f"_{self.minutes:g}min" if self.minutes else "") + \
+            (f"_p{self.pauses[0]:g}-{self.pauses[1]:g}" if self.pauses else "")
 
 
+#: pauses of a pilot who speaks now and then: minutes of noise with little speech, where a drifting segmenter
+#: goes deaf (docs/bench/vad_memory_sweep.md)
+SPARSE = (5.0, 40.0)
 #: issue 30's room: 5-minute streams at 12 dB over each noise and over the four in turn, at one level and
-#: with levels varying +-6 dB, and 30-minute streams (a whole flight) over the four in turn, both ways
+#: with levels varying +-6 dB, and 30-minute streams (a whole flight) over the four in turn: talkative both ways,
+#: and sparse
 ROOM = [*(StreamSpec(n, 12.0, 0.0, 5.0) for n in [*NOISE_FILES, "mixed"]),
         *(StreamSpec(n, 12.0, 6.0, 5.0) for n in [*NOISE_FILES, "mixed"]),
-        StreamSpec("mixed", 12.0, 0.0, 30.0), StreamSpec("mixed", 12.0, 6.0, 30.0)]
+        StreamSpec("mixed", 12.0, 0.0, 30.0), StreamSpec("mixed", 12.0, 6.0, 30.0),
+        StreamSpec("mixed", 12.0, 0.0, 30.0, SPARSE)]
 
 
 def utterances_for(minutes: float, pause_s: tuple[float, float]) -> int:
@@ -362,7 +369,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--noise-change-s", type=float, default=60.0, help="with 'mixed': each noise's turn, s")
     p.add_argument("--room", action="store_true",
                    help="the room of issue 30: 5-min streams at 12 dB over every noise and 'mixed', one level and "
-                        "+-6 dB, and 30-min 'mixed' streams, pauses 1.5-4 s (ignores --noises/--snrs/--minutes)")
+                        "+-6 dB, and 30-min 'mixed' streams, pauses 1.5-4 s, and one with pauses 5-40 s (ignores --noises/--snrs/--minutes)")
     p.add_argument("--seed", type=int, default=1)
     p.add_argument("--quick", action="store_true", help="12 utterances, clean + kitchen 12 dB")
     p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"),
@@ -403,16 +410,17 @@ def main(argv: list[str] | None = None) -> int:
     lines = []
     shown_cmd = ""
     for spec in specs:
-        n_utt = utterances_for(spec.minutes, pause_s) if spec.minutes else args.utterances
+        pauses_s = spec.pauses or pause_s
+        n_utt = utterances_for(spec.minutes, pauses_s) if spec.minutes else args.utterances
         clips = choose(recordings, n_utt, np.random.default_rng(args.seed))
-        speech, placed, rng = lay_clips(clips, args.seed, pause_s, spec.spread_db)
+        speech, placed, rng = lay_clips(clips, args.seed, pauses_s, spec.spread_db)
         noise = None
         if spec.snr_db is not None:
             source = list(noise_audio.values()) if spec.noise == "mixed" else noise_audio[spec.noise]
             noise = noise_track(source, speech.size, spec.snr_db, rng, args.noise_change_s)
         x = np.clip(speech + (noise if noise is not None else 0.0), -1, 1)
         audible = [local_snr_db(speech, noise, pl) >= AUDIBLE_DB for pl in placed]
-        pauses = "" if pause_s == (1.5, 6.0) else f"_p{pause_s[0]:g}-{pause_s[1]:g}"
+        pauses = "" if pause_s == (1.5, 6.0) or spec.pauses else f"_p{pause_s[0]:g}-{pause_s[1]:g}"
         wav = work / (f"stream_{spec.label}_n{n_utt}_s{args.seed}{pauses}"
                       f"{'' if args.split == 'test' else '_' + args.split}.wav")
         write_wav(wav, x)
@@ -420,7 +428,7 @@ def main(argv: list[str] | None = None) -> int:
         rows, shown_cmd, seconds = recognize(wav, extra, work / "cache")
         c = score(rows, placed, x.size / RATE, audible)
         noise_name = {"none": "none", "mixed": "all four in turn"}.get(spec.noise, NOISE_FILES.get(spec.noise, ""))
-        line = (f"| {noise_name} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
+        line = (f"| {noise_name} | {pauses_s[0]:g}-{pauses_s[1]:g} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
                 f"{'±' + format(spec.spread_db, 'g') if spec.spread_db else '0'} | "
                 f"{c.minutes:.1f} | {c.segments} / {len(placed)} | {pct(c.right, c.commands)} | "
                 f"{c.wrong} | {c.missed} | {c.unsegmented} | {c.false_speech} / {c.others} | {c.false_noise} | "
@@ -440,7 +448,7 @@ def main(argv: list[str] | None = None) -> int:
            "tuning heard; " if args.split == "test" else "dev part of `../shared/speech` (the split settings are "
            "chosen on; ") + "70 % commands, "
         "15 % non-command words, 15 % sentences), "
-        f"seed {args.seed}, pauses {pause_s[0]:g}-{pause_s[1]:g} s, each utterance at {SPEECH_DBFS:g} dBFS over its "
+        f"seed {args.seed}, pauses as in the table (uniform, seeded), each utterance at {SPEECH_DBFS:g} dBFS over its "
         "voiced frames"
         + (" (level spread ±D: each utterance up to D dB louder or quieter, uniformly)" if any(spreads) else "")
         + "; the real noise under the whole stream at the stated SNR below that level (all four in turn: each "
@@ -456,10 +464,10 @@ def main(argv: list[str] | None = None) -> int:
         "recogniser only; the spotter is measured in stop.md).",
         f"Load average at the end of the run: {os.getloadavg()[0]:.1f} (2 cores).",
         "",
-        "| noise | SNR dB | level spread dB | minutes | segments / utterances | commands right | wrong | missed | "
+        "| noise | pauses s | SNR dB | level spread dB | minutes | segments / utterances | commands right | wrong | missed | "
         "no segment | false actions on speech / non-command utterances | false actions on noise alone | "
         "false actions per 5 min | commands right per min | longest deaf stretch s (audible) | run s |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         *lines, "",
     ])
     out = args.out or str(ROOT / "docs" / "bench" / "stream.md")
