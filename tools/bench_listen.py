@@ -64,7 +64,11 @@ def script(recordings: list[Recording], minutes: int, seed: int) -> list[Recordi
 
 
 def offline(wav: np.ndarray, placed: list[Placed], work: Path, model: str) -> dict[int, str | None]:
-    """Each command's own clip (cut from the stream, noise and all) decided by ``gcs-voice recognize``."""
+    """Each command's own clip (cut from the stream, noise and all) decided by ``gcs-voice recognize``
+    (kept in ``offline.json`` in the work folder: ``--analyse`` reads it again)."""
+    kept = work / "offline.json"
+    if kept.is_file():
+        return {int(k): v for k, v in json.loads(kept.read_text(encoding="utf-8")).items()}
     paths = {}
     for i, p in enumerate(placed):
         if p.clip.action is None:
@@ -79,7 +83,9 @@ def offline(wav: np.ndarray, placed: list[Placed], work: Path, model: str) -> di
     if done.returncode != 0:
         raise SystemExit(f"bench_listen: gcs-voice recognize failed: {done.stderr.strip()[-300:]}")
     rows = {Path(r["file"]).name: r for r in map(json.loads, (ln for ln in done.stdout.splitlines() if ln.startswith("{")))}
-    return {i: rows[path.name].get("action") for i, path in paths.items()}
+    decided = {i: rows[path.name].get("action") for i, path in paths.items()}
+    kept.write_text(json.dumps(decided), encoding="utf-8")
+    return decided
 
 
 @dataclass
@@ -141,7 +147,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     p.add_argument("--work", type=Path, default=None, help="where the recording, clips and logs go (default: a temp dir)")
     p.add_argument("--out", default=None, help="markdown report ('-' or none: stdout only)")
+    p.add_argument("--analyse", action="store_true",
+                   help="count again from the session log and offline decisions already in --work (no flight)")
     args = p.parse_args(argv)
+    if args.analyse and not (args.work and (args.work / "flight.jsonl").is_file()):
+        p.error("--analyse needs --work FOLDER with a flight.jsonl from an earlier run")
     if args.noise != "mixed" and args.noise not in NOISE_FILES:
         p.error(f"--noise: unknown {args.noise!r}")
     work = args.work or Path(tempfile.mkdtemp(prefix="bench-listen-"))
@@ -153,30 +163,38 @@ def main(argv: list[str] | None = None) -> int:
         else read_wav(SHARED / "noise" / NOISE_FILES[args.noise])
     x = np.clip(speech + noise_track(noises, speech.size, args.snr, rng), -1, 1)
     wav = work / "flight.wav"
-    write_wav(wav, x)
+    if not args.analyse:
+        write_wav(wav, x)
     print(f"bench_listen: {x.size / RATE / 60:.1f} min, {len(placed)} utterances -> {wav}", flush=True)
 
     expected = offline(x, placed, work, args.model)
     print(f"bench_listen: offline decisions of {len(expected)} command clips done", flush=True)
 
-    voice = load_voice("en", "whisper", args.model, None)
-    load_before = os.getloadavg()[0]
-    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / "sim.log") as sim:
-        result = run_session(SessionConfig(connection=sim.connection, lang="en", listen_wav=wav, takeoff_m=1.5,
-                                           hold_s=1.0, headless=True, quiet=True, log_dir=work, log_name="flight"),
-                             voice=voice)
-    load_after = os.getloadavg()[0]
-    got = live(result.jsonl, placed)
+    loads = work / "load.json"
+    if not args.analyse:
+        voice = load_voice("en", "whisper", args.model, None)
+        load_before = os.getloadavg()[0]
+        with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / "sim.log") as sim:
+            run_session(SessionConfig(connection=sim.connection, lang="en", listen_wav=wav, takeoff_m=1.5,
+                                      hold_s=1.0, headless=True, quiet=True, log_dir=work, log_name="flight"),
+                        voice=voice)
+        loads.write_text(json.dumps([load_before, os.getloadavg()[0]]), encoding="utf-8")
+    load_before, load_after = json.loads(loads.read_text(encoding="utf-8")) if loads.is_file() else (-1.0, -1.0)
+    got = live(work / "flight.jsonl", placed)
 
     commands = [i for i, p in enumerate(placed) if p.clip.action is not None]
     others = [i for i, p in enumerate(placed) if p.clip.action is None]
     offline_right = [i for i in commands if expected[i] == placed[i].clip.action]
+    for i in commands:  # a stop the spotter made while the word was said is that stop, acted on
+        if placed[i].clip.action == "stop" and got.spotted.get(i) and "stop" not in got.actions[i]:
+            got.actions[i].append("stop")
     kept = [i for i in offline_right if placed[i].clip.action in got.actions[i]
             and all(a == placed[i].clip.action for a in got.actions[i])]
     lost = [i for i in offline_right if i not in kept]
     right = [i for i in commands if got.actions[i] and all(a == placed[i].clip.action for a in got.actions[i])]
     wrong = [i for i in commands if any(a != placed[i].clip.action for a in got.actions[i])]
     false_speech = sum(len(got.actions[i]) for i in others)
+    false_moves = sum(1 for i in others for a in got.actions[i] if a != "stop")
     fmt = lambda v: f"{percentile(v, .5):.0f} / {percentile(v, .95):.0f} (n={len(v)})" if v else "-"  # noqa: E731
     shown = " ".join(["python -m tools.bench_listen", *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))])
     minutes = x.size / RATE / 60
@@ -201,10 +219,12 @@ def main(argv: list[str] | None = None) -> int:
         f"| commands said (motions + stops) | {len(commands)} |",
         f"| right offline (own clip) | {len(offline_right)} |",
         f"| of those, acted on live with the same action | **{len(kept)} / {len(offline_right)}** |",
-        f"| live: right / wrong / no voice action | {len(right)} / {len(wrong)} / {len(commands) - len(right) - len(wrong)} |",
+        f"| live: right / wrong / no action (a stop made by the spotter counts) | {len(right)} / {len(wrong)} / "
+        f"{len(commands) - len(right) - len(wrong)} |",
         f"| live: stops the spotter made (of {sum(1 for i in commands if placed[i].clip.action == 'stop')} said) | "
         f"{sum(1 for i in commands if placed[i].clip.action == 'stop' and got.spotted.get(i))} |",
-        f"| false actions on other speech (of {len(others)} utterances) | {false_speech} |",
+        f"| false actions on other speech (of {len(others)} utterances); of them motions (not a stop) | "
+        f"{false_speech}; {false_moves} |",
         f"| false actions on noise alone | {got.noise_actions} |",
         f"| end of speech to decision, ms p50 / p95 | {fmt(got.decide_ms)} |",
         f"| end of speech to setpoint on the wire, ms p50 / p95 | {fmt(got.sent_ms)} |",
@@ -214,6 +234,12 @@ def main(argv: list[str] | None = None) -> int:
         lines += ["Right offline, not acted on live the same way:", ""]
         lines += [f"- {placed[i].start_s:.1f} s `{placed[i].clip.path.name}` ({placed[i].clip.action}): live "
                   f"{got.actions[i] or 'nothing'}" for i in lost]
+        lines.append("")
+    acted_others = [(i, a) for i in others for a in got.actions[i]]
+    if acted_others:
+        lines += ["Other speech acted on:", ""]
+        lines += [f"- {placed[i].start_s:.1f} s `{placed[i].clip.path.name}` (\"{placed[i].clip.word}\"): {a}"
+                  for i, a in acted_others]
         lines.append("")
     text = "\n".join(lines)
     print(text)
