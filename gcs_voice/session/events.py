@@ -34,6 +34,9 @@ KINDS: dict[str, str] = {
     "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
     "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
+    "takeover": "the vehicle left the velocity mode while voice flew it, by another ground station's command or "
+                "by itself (a failsafe): mode, previous, by (station when an ACK of its mode change was heard, else unknown), station ([system, component] when "
+                "known); voice motions are refused until that mode is left for the velocity mode again",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }
