@@ -251,6 +251,8 @@ class Bridge:
 
     #: an ACK of a mode change for another station this recent explains the next mode change (tracker clock)
     TAKEOVER_ACK_S = 3.0
+    #: how long the take-over event waits for that ACK when it comes after the HEARTBEAT
+    TAKEOVER_ACK_GRACE_S = 0.3
 
     def _watch_mode(self, state: VehicleState) -> None:
         """Another station (or the vehicle itself) took the vehicle out of the velocity mode: stop flying it.
@@ -265,16 +267,23 @@ class Bridge:
             return
         self.mapper.apply("stop", state)
         self.link.stop_stream()
-        acked = state.other_station_mode_s
-        by_station = acked is not None and state.heartbeat_s is not None and \
-            state.heartbeat_s - acked <= self.TAKEOVER_ACK_S
+        changed_s = state.heartbeat_s or 0.0
+
+        def acked(s: VehicleState) -> bool:
+            return s.other_station_mode_s is not None and s.other_station_mode_s >= changed_s - self.TAKEOVER_ACK_S
+
+        # the other station's ACK may come just after the HEARTBEAT that shows its mode (gcs-sim sends the
+        # HEARTBEAT first; ArduCopter sends both within 10 ms): wait a moment for it, the stream already stopped
+        seen = self.link.wait_for(acked, self.TAKEOVER_ACK_GRACE_S)
+        by_station = seen is not None
+        station = seen.other_station if seen is not None else None
         if by_station:
             msg = f"another station took over: {state.mode}"
         else:  # PX4's second link carries no other station's ACKs; a failsafe or an RC switch sends none
             msg = f"vehicle left {velocity_mode}: {state.mode} (another station, the RC switch or a failsafe)"
         self.bus.emit("takeover", msg + f"; voice motions wait until it is back in {velocity_mode}",
                       mode=state.mode, previous=previous, by="station" if by_station else "unknown",
-                      station=list(state.other_station) if by_station and state.other_station else None)
+                      station=list(station) if station else None)
 
     # ---- carrying out one request -------------------------------------------------------------------
     def _refuse(self, request: Request, reason: str) -> None:
