@@ -1,7 +1,7 @@
 """gcs-voice beside QGroundControl: two ground stations on one bundled-sim vehicle, in the usual setups.
 
 Each test flies the same story with the real simulator process, the bridge (key requests, no speech
-needed) and a second station that acts like QGroundControl (tests/gcs_peer.py: 255/190, HEARTBEAT at
+needed) and a second station that acts like QGroundControl (tools/qgc_like.py: 255/190, HEARTBEAT at
 1 Hz, parameter reads, its own mode change):
 
 take off by voice; the QGroundControl-like station reads parameters meanwhile and sees the voice motion
@@ -30,7 +30,7 @@ from typing import Callable, Iterator
 import pytest
 from conftest import IN_CI
 from e2e_support import SPEEDUP, require_parts
-from gcs_peer import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
+from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
 from pymavlink import mavutil
 
 from gcs_voice.actions.mapper import ActionMapper

@@ -1,0 +1,205 @@
+#!/usr/bin/env python3
+"""Two ground stations on one bundled-sim vehicle through MAVProxy, for a bounded time (issue 32's soak).
+
+gcs-sim (real time) -> MAVProxy ``--out`` to gcs-voice's bridge (key requests, no speech) and to a
+QGroundControl-like station (tools/qgc_like.py: 255/190, HEARTBEAT 1 Hz, a parameter read every 2 s).
+Loopback only. Cycles until the time is up:
+
+  voice take off -> go forward / stop / go back / stop -> the other station switches to BRAKE (or Hold)
+  -> voice "go left" (must be refused) -> the other station gives GUIDED (or nothing on PX4) back ->
+  voice "go right" / stop -> voice land, wait until disarmed.
+
+Counts: every COMMAND_LONG each station sent and every COMMAND_ACK each took as its own (addressed to its
+system and component); an ACK "to the wrong station" is one a station took for a command it never sent,
+or more ACKs than commands (ArduPilot answers each command once). The take-over is timed from the other
+station's DO_SET_MODE to the bridge's ``takeover`` event, and to the vehicle HEARTBEAT that showed it.
+
+    nice -n 5 python -m tools.soak_two_stations --minutes 10
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections import Counter
+from pathlib import Path
+
+from pymavlink import mavutil
+
+from gcs_voice.actions.mapper import ActionMapper
+from gcs_voice.link import VehicleLink
+from gcs_voice.session.bridge import Bridge, Request
+from gcs_voice.session.events import EventBus
+from gcs_voice.session.sim_process import BundledSim, free_udp_port
+from gcs_voice.settings import load_settings
+from tools.cpu_steal import CpuSample
+from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
+
+ARDUCOPTER_BRAKE, ARDUCOPTER_GUIDED = 17, 4
+DO_SET_MODE = mavutil.mavlink.MAV_CMD_DO_SET_MODE
+
+
+class Soak:
+    """One soak: the bridge, the other station, and what each sent and took."""
+
+    def __init__(self, link: VehicleLink, qgc: QgcLikeStation, bus: EventBus, bridge: Bridge) -> None:
+        self.link, self.qgc, self.bus, self.bridge = link, qgc, bus, bridge
+        self.voice_sent: list[int] = []
+        self.takeover_s: list[float] = []
+        self.takeover_beat_s: list[float] = []
+        self.cycles = 0
+        self.refused_after_takeover = 0
+        self.failures: list[str] = []
+
+    def request(self, action: str, timeout_s: float = 15.0) -> Request:
+        request = self.bridge.submit(Request(action, "key"))
+        if not request.done.wait(timeout_s):
+            raise RuntimeError(f"{action}: not handled within {timeout_s:g} s")
+        return request
+
+    def wait(self, predicate, timeout_s: float, what: str) -> None:   # noqa: ANN001
+        deadline = time.monotonic() + timeout_s
+        while not predicate():
+            if time.monotonic() > deadline:
+                raise RuntimeError(f"{what}: not within {timeout_s:g} s")
+            time.sleep(0.02)
+
+    def cycle(self) -> None:
+        self.bridge.flying_ready.clear()
+        self.request("take_off")
+        if not self.bridge.flying_ready.wait(90):
+            raise RuntimeError("take-off did not finish within 90 s")
+        for action, hold_s in (("go_forward", 1.5), ("stop", 0.5), ("go_back", 1.5), ("stop", 0.5)):
+            if not self.request(action).accepted:
+                raise RuntimeError(f"{action} refused while flying")
+            time.sleep(hold_s)
+        takeovers = sum(e.kind == "takeover" for e in self.bus.history)
+        beats = self.link.state.heartbeats
+        sent_t = time.monotonic()
+        self.qgc.set_mode(ARDUCOPTER_BRAKE)
+        self.wait(lambda: sum(e.kind == "takeover" for e in self.bus.history) > takeovers, 10, "take-over event")
+        self.takeover_s.append(time.monotonic() - sent_t)
+        self.takeover_beat_s.append((self.link.state.heartbeat_s or sent_t) - sent_t)
+        if self.link.state.heartbeats - beats > 2:
+            self.failures.append(f"cycle {self.cycles}: take-over seen only after {self.link.state.heartbeats - beats} "
+                                 "HEARTBEATs")
+        if self.request("go_left").accepted:
+            self.failures.append(f"cycle {self.cycles}: go_left flown after the take-over")
+        else:
+            self.refused_after_takeover += 1
+        self.qgc.set_mode(ARDUCOPTER_GUIDED)      # the other station gives it back
+        self.wait(lambda: self.link.state.mode == "GUIDED", 10, "GUIDED given back")
+        for action, hold_s in (("go_right", 1.0), ("stop", 0.5)):
+            if not self.request(action).accepted:
+                raise RuntimeError(f"{action} refused after GUIDED was given back")
+            time.sleep(hold_s)
+        self.request("land")
+        self.wait(lambda: self.link.state.armed is False, 60, "landed and disarmed")
+        self.cycles += 1
+
+
+def run(minutes: float) -> int:
+    if shutil.which("mavproxy.py") is None:
+        print("soak_two_stations: mavproxy.py is not installed (pip install mavproxy)", file=sys.stderr)
+        return 2
+    settings = load_settings()
+    voice_port, qgc_port = free_udp_port(), free_udp_port()
+    cpu = CpuSample()
+    started = time.monotonic()
+    with cpu, tempfile.TemporaryDirectory() as tmp, BundledSim(room="open_field") as sim:
+        router = subprocess.Popen(
+            ["mavproxy.py", "--master", f"udpin:127.0.0.1:{sim.port}", "--nowait", "--non-interactive", "--no-state",
+             "--out", f"udp:127.0.0.1:{voice_port}", "--out", f"udp:127.0.0.1:{qgc_port}"],
+            cwd=Path(tmp), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        link = VehicleLink(f"udpin:127.0.0.1:{voice_port}", settings)
+        send = link.send
+        voice_sent: list[int] = []
+
+        def counting_send(msg, time_s=None):   # noqa: ANN001 - the link's own signature
+            if msg.get_type() == "COMMAND_LONG":
+                voice_sent.append(int(msg.command))
+            send(msg, time_s)
+
+        link.send = counting_send   # counts what gcs-voice asks; every message still goes out unchanged
+        soak: Soak | None = None
+        try:
+            with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
+                link.open()
+                link.wait_vehicle(30)
+                link.request_telemetry()
+                qgc.wait_for(lambda q: q.vehicle is not None, 30, "the vehicle's HEARTBEAT")
+                bus = EventBus()
+                bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
+                soak = Soak(link, qgc, bus, bridge)
+                soak.voice_sent = voice_sent
+
+                def script() -> None:
+                    try:
+                        while time.monotonic() - started < minutes * 60:
+                            soak.cycle()
+                    except Exception as exc:   # noqa: BLE001 - reported below
+                        soak.failures.append(f"cycle {soak.cycles}: {exc}")
+                    finally:
+                        bridge.finish(0)
+
+                worker = threading.Thread(target=script, daemon=True)
+                worker.start()
+                bridge.run()
+                worker.join(30)
+                qgc_sent = Counter(command for _, command in qgc.sent)
+                qgc_took = Counter(a[1] for a in qgc.acks_to((QGC_SYSTEM, QGC_COMPONENT)))
+                qgc_heard_other = len(qgc.acks) - sum(qgc_took.values())
+                param_values = qgc.param_values
+        finally:
+            link.close()
+            router.terminate()
+            try:
+                router.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                router.kill()
+                router.wait()
+    assert soak is not None
+    voice_sent = Counter(soak.voice_sent)
+    voice_took = Counter(a.command for a in link.tracker.acks)
+    wrong_voice = sum(max(0, n - voice_sent[c]) for c, n in voice_took.items())
+    wrong_qgc = sum(max(0, n - qgc_sent[c]) for c, n in qgc_took.items())
+    unanswered_voice = sum(max(0, n - voice_took[c]) for c, n in voice_sent.items())
+    unanswered_qgc = sum(max(0, n - qgc_took[c]) for c, n in qgc_sent.items())
+    elapsed = time.monotonic() - started
+    print(f"soak: {elapsed / 60:.1f} min, {soak.cycles} cycles (take off, fly, BRAKE by the other station, "
+          f"GUIDED given back, fly, land); {cpu.describe()}, load average {os.getloadavg()[0]:.1f} at the end "
+          "(a shared 2-core machine)")
+    print(f"gcs-voice (255/{settings.gcs_component_id}): {sum(voice_sent.values())} commands, "
+          f"{sum(voice_took.values())} ACKs taken, unanswered {unanswered_voice}, taken without a command {wrong_voice}")
+    print(f"QGroundControl-like (255/190): {sum(qgc_sent.values())} commands, {sum(qgc_took.values())} ACKs taken, "
+          f"unanswered {unanswered_qgc}, taken without a command {wrong_qgc}; heard {qgc_heard_other} ACKs "
+          f"addressed to others (left alone); {param_values} PARAM_VALUEs")
+    if soak.takeover_s:
+        print(f"take-over: {len(soak.takeover_s)}, said {statistics.median(soak.takeover_s):.2f} s median, "
+              f"{max(soak.takeover_s):.2f} s max after the other station's DO_SET_MODE (the HEARTBEAT that showed "
+              f"it: {max(soak.takeover_beat_s):.2f} s max); voice motions refused after it "
+              f"{soak.refused_after_takeover}/{len(soak.takeover_s)}")
+    for failure in soak.failures:
+        print(f"FAILED: {failure}")
+    bad = wrong_voice or wrong_qgc or unanswered_qgc or soak.failures
+    return 1 if bad else 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    parser.add_argument("--minutes", type=float, default=10.0, help="how long to cycle (default 10)")
+    args = parser.parse_args(argv)
+    if not 0 < args.minutes <= 120:
+        parser.error("--minutes must be within (0, 120]")
+    return run(args.minutes)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
