@@ -15,6 +15,10 @@ or more ACKs than commands (ArduPilot answers each command once). The take-over 
 station's DO_SET_MODE to the bridge's ``takeover`` event, and to the vehicle HEARTBEAT that showed it.
 
     nice -n 5 python -m tools.soak_two_stations --minutes 10
+    nice -n 5 python -m tools.soak_two_stations --vehicle arducopter-sitl --cycles 1   # ../shared/sitl
+
+``--vehicle arducopter-sitl`` flies the real ArduCopter SITL of ../shared/sitl instead (real time; a cold
+boot needs ~41 s before it can arm).
 """
 
 from __future__ import annotations
@@ -29,6 +33,8 @@ import tempfile
 import threading
 import time
 from collections import Counter
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from pymavlink import mavutil
@@ -43,14 +49,35 @@ from tools.cpu_steal import CpuSample
 from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
 
 ARDUCOPTER_BRAKE, ARDUCOPTER_GUIDED = 17, 4
+SITL_START = Path(__file__).resolve().parent.parent.parent / "shared" / "sitl" / "arducopter" / "start.sh"
+#: a cold ArduCopter SITL arms ~41 s after boot; the bundled simulator at once
+TAKEOFF_TIMEOUT_S = {"gcs-sim": 90.0, "arducopter-sitl": 180.0}
+
+
+@contextmanager
+def vehicle(kind: str) -> Iterator[int]:
+    """Start the vehicle; yields the UDP port on 127.0.0.1 it sends to (the router's master)."""
+    port = free_udp_port()
+    if kind == "gcs-sim":
+        with BundledSim(room="open_field", port=port):
+            yield port
+        return
+    out = subprocess.run([str(SITL_START), str(port)], capture_output=True, text=True, check=True).stdout
+    pid = int(out.strip().splitlines()[-1].split()[0])
+    try:
+        yield port
+    finally:
+        os.kill(pid, 15)
 DO_SET_MODE = mavutil.mavlink.MAV_CMD_DO_SET_MODE
 
 
 class Soak:
     """One soak: the bridge, the other station, and what each sent and took."""
 
-    def __init__(self, link: VehicleLink, qgc: QgcLikeStation, bus: EventBus, bridge: Bridge) -> None:
+    def __init__(self, link: VehicleLink, qgc: QgcLikeStation, bus: EventBus, bridge: Bridge,
+                 takeoff_timeout_s: float = 90.0) -> None:
         self.link, self.qgc, self.bus, self.bridge = link, qgc, bus, bridge
+        self.takeoff_timeout_s = takeoff_timeout_s
         self.voice_sent: list[int] = []
         self.takeover_s: list[float] = []
         self.takeover_beat_s: list[float] = []
@@ -74,8 +101,8 @@ class Soak:
     def cycle(self) -> None:
         self.bridge.flying_ready.clear()
         self.request("take_off")
-        if not self.bridge.flying_ready.wait(90):
-            raise RuntimeError("take-off did not finish within 90 s")
+        if not self.bridge.flying_ready.wait(self.takeoff_timeout_s):
+            raise RuntimeError(f"take-off did not finish within {self.takeoff_timeout_s:g} s")
         for action, hold_s in (("go_forward", 1.5), ("stop", 0.5), ("go_back", 1.5), ("stop", 0.5)):
             if not self.request(action).accepted:
                 raise RuntimeError(f"{action} refused while flying")
@@ -105,7 +132,7 @@ class Soak:
         self.cycles += 1
 
 
-def run(minutes: float) -> int:
+def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int:
     if shutil.which("mavproxy.py") is None:
         print("soak_two_stations: mavproxy.py is not installed (pip install mavproxy)", file=sys.stderr)
         return 2
@@ -113,9 +140,9 @@ def run(minutes: float) -> int:
     voice_port, qgc_port = free_udp_port(), free_udp_port()
     cpu = CpuSample()
     started = time.monotonic()
-    with cpu, tempfile.TemporaryDirectory() as tmp, BundledSim(room="open_field") as sim:
+    with cpu, tempfile.TemporaryDirectory() as tmp, vehicle(kind) as vehicle_port:
         router = subprocess.Popen(
-            ["mavproxy.py", "--master", f"udpin:127.0.0.1:{sim.port}", "--nowait", "--non-interactive", "--no-state",
+            ["mavproxy.py", "--master", f"udpin:127.0.0.1:{vehicle_port}", "--nowait", "--non-interactive", "--no-state",
              "--out", f"udp:127.0.0.1:{voice_port}", "--out", f"udp:127.0.0.1:{qgc_port}"],
             cwd=Path(tmp), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
         link = VehicleLink(f"udpin:127.0.0.1:{voice_port}", settings)
@@ -132,17 +159,17 @@ def run(minutes: float) -> int:
         try:
             with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
                 link.open()
-                link.wait_vehicle(30)
+                link.wait_vehicle(60)
                 link.request_telemetry()
                 qgc.wait_for(lambda q: q.vehicle is not None, 30, "the vehicle's HEARTBEAT")
                 bus = EventBus()
                 bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
-                soak = Soak(link, qgc, bus, bridge)
+                soak = Soak(link, qgc, bus, bridge, TAKEOFF_TIMEOUT_S[kind])
                 soak.voice_sent = voice_sent
 
                 def script() -> None:
                     try:
-                        while time.monotonic() - started < minutes * 60:
+                        while (soak.cycles < cycles) if cycles else (time.monotonic() - started < minutes * 60):
                             soak.cycle()
                     except Exception as exc:   # noqa: BLE001 - reported below
                         soak.failures.append(f"cycle {soak.cycles}: {exc}")
@@ -173,7 +200,7 @@ def run(minutes: float) -> int:
     unanswered_voice = sum(max(0, n - voice_took[c]) for c, n in voice_sent.items())
     unanswered_qgc = sum(max(0, n - qgc_took[c]) for c, n in qgc_sent.items())
     elapsed = time.monotonic() - started
-    print(f"soak: {elapsed / 60:.1f} min, {soak.cycles} cycles (take off, fly, BRAKE by the other station, "
+    print(f"soak ({kind}): {elapsed / 60:.1f} min, {soak.cycles} cycles (take off, fly, BRAKE by the other station, "
           f"GUIDED given back, fly, land); {cpu.describe()}, load average {os.getloadavg()[0]:.1f} at the end "
           "(a shared 2-core machine)")
     print(f"gcs-voice (255/{settings.gcs_component_id}): {sum(voice_sent.values())} commands, "
@@ -195,10 +222,17 @@ def run(minutes: float) -> int:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--minutes", type=float, default=10.0, help="how long to cycle (default 10)")
+    parser.add_argument("--cycles", type=int, help="fly this many cycles instead of --minutes")
+    parser.add_argument("--vehicle", choices=sorted(TAKEOFF_TIMEOUT_S), default="gcs-sim",
+                        help="the bundled simulator, or the real ArduCopter SITL of ../shared/sitl")
     args = parser.parse_args(argv)
     if not 0 < args.minutes <= 120:
         parser.error("--minutes must be within (0, 120]")
-    return run(args.minutes)
+    if args.cycles is not None and not 0 < args.cycles <= 100:
+        parser.error("--cycles must be within 1-100")
+    if args.vehicle == "arducopter-sitl" and not SITL_START.exists():
+        parser.error(f"no ArduCopter SITL at {SITL_START}")
+    return run(args.minutes, args.vehicle, args.cycles)
 
 
 if __name__ == "__main__":
