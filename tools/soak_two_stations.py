@@ -54,6 +54,25 @@ SITL_START = Path(__file__).resolve().parent.parent.parent / "shared" / "sitl" /
 TAKEOFF_TIMEOUT_S = {"gcs-sim": 90.0, "arducopter-sitl": 180.0}
 
 
+def mavproxy_fan_out(master: str, ports: list[int], cwd: Path) -> subprocess.Popen:
+    """MAVProxy as sim_vehicle.py runs it: one master, ``--out`` to each ground station's UDP port."""
+    cmd = ["mavproxy.py", "--master", master, "--nowait", "--non-interactive", "--no-state"]
+    for port in ports:
+        cmd += ["--out", f"udp:127.0.0.1:{port}"]
+    return subprocess.Popen(cmd, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.DEVNULL)
+
+
+def stop_process(proc: subprocess.Popen) -> None:
+    """Terminate a process we started, and kill it if it does not end within 10 s."""
+    proc.terminate()
+    try:
+        proc.wait(timeout=10)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        proc.wait()
+
+
 @contextmanager
 def vehicle(kind: str) -> Iterator[int]:
     """Start the vehicle; yields the UDP port on 127.0.0.1 it sends to (the router's master)."""
@@ -141,10 +160,7 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
     cpu = CpuSample()
     started = time.monotonic()
     with cpu, tempfile.TemporaryDirectory() as tmp, vehicle(kind) as vehicle_port:
-        router = subprocess.Popen(
-            ["mavproxy.py", "--master", f"udpin:127.0.0.1:{vehicle_port}", "--nowait", "--non-interactive", "--no-state",
-             "--out", f"udp:127.0.0.1:{voice_port}", "--out", f"udp:127.0.0.1:{qgc_port}"],
-            cwd=Path(tmp), stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        router = mavproxy_fan_out(f"udpin:127.0.0.1:{vehicle_port}", [voice_port, qgc_port], Path(tmp))
         link = VehicleLink(f"udpin:127.0.0.1:{voice_port}", settings)
         send = link.send
         voice_sent: list[int] = []
@@ -186,12 +202,7 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
                 param_values = qgc.param_values
         finally:
             link.close()
-            router.terminate()
-            try:
-                router.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                router.kill()
-                router.wait()
+            stop_process(router)
     assert soak is not None
     voice_sent = Counter(soak.voice_sent)
     voice_took = Counter(a.command for a in link.tracker.acks)
