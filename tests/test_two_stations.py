@@ -298,3 +298,32 @@ def test_serial_radio_shared_through_mavproxy(tmp_path: Path, ports: tuple[int, 
         radio.close()
     _check_common(story, qgc, "GUIDED", "BRAKE")
     assert next(e for e in story.events if e["kind"] == "takeover")["by"] == "station"
+
+
+@pytest.mark.parametrize("autopilot", ["ardupilot", "px4"])
+def test_sim_acks_reach_the_sender_only(autopilot: str, ports: tuple[int, int]) -> None:
+    """Two stations on two links of gcs-sim (no router), each asking for a message interval: each gets the ACK
+    addressed to it, on its own link only (ArduPilot answers on the command's channel; PX4 on every link that
+    saw the addressee: here only the sender's), and a DO_SET_MODE likewise (PX4: both of its ACKs)."""
+    require_parts("sim_bridge.cli")
+    first_port, second_port = ports
+    with BundledSim(autopilot, speedup=SPEEDUP, room="open_field", port=first_port,
+                    extra_args=["--out", f"udp:127.0.0.1:{second_port}"]) as _sim:
+        with QgcLikeStation(f"udpin:127.0.0.1:{first_port}") as qgc, \
+                QgcLikeStation(f"udpin:127.0.0.1:{second_port}", component=231) as voice:
+            for station in (qgc, voice):
+                station.wait_for(lambda s: s.vehicle is not None, 30, "the vehicle's HEARTBEAT")
+            qgc.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 33, 500_000)
+            voice.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 30, 200_000)
+            hold = (ARDUCOPTER_BRAKE, 0) if autopilot == "ardupilot" else (PX4_AUTO, PX4_LOITER)
+            voice.set_mode(*hold)
+            expected = 3 if autopilot == "px4" else 2
+            voice.wait_for(lambda s: len(s.acks) >= expected, 10, "its ACKs")
+            qgc.wait_for(lambda s: len(s.acks) >= 1, 10, "its ACK")
+            # a barrier instead of a pause: an ACK misrouted to the first link would come before the answer
+            # to a later command of the first station (one simulator loop, one socket, in order)
+            qgc.command(mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL, 33, 1_000_000)
+            qgc.wait_for(lambda s: len(s.acks) >= 2, 10, "the barrier's ACK")
+    interval = mavutil.mavlink.MAV_CMD_SET_MESSAGE_INTERVAL
+    assert [(a[1], a[3], a[4]) for a in qgc.acks] == [(interval, 255, 190)] * 2
+    assert all((a[3], a[4]) == (255, 231) for a in voice.acks) and len(voice.acks) == expected
