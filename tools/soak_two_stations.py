@@ -223,7 +223,9 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
         print(f"take-over: {len(soak.takeover_s)}, said {statistics.median(soak.takeover_s):.2f} s median, "
               f"{max(soak.takeover_s):.2f} s max after the other station's DO_SET_MODE (the HEARTBEAT that showed "
               f"it: {max(soak.takeover_beat_s):.2f} s max); voice motions refused after it "
-              f"{soak.refused_after_takeover}/{len(soak.takeover_s)}")
+              f"{soak.refused_after_takeover}/{len(soak.takeover_s)}; named the station "
+              f"{sum(e.kind == 'takeover' and e.data.get('by') == 'station' for e in soak.bus.history)}/"
+              f"{len(soak.takeover_s)}")
     for failure in soak.failures:
         print(f"FAILED: {failure}")
     bad = wrong_voice or wrong_qgc or unanswered_qgc or soak.failures
