@@ -18,7 +18,9 @@ station's DO_SET_MODE to the bridge's ``takeover`` event, and to the vehicle HEA
     nice -n 5 python -m tools.soak_two_stations --vehicle arducopter-sitl --cycles 1   # ../shared/sitl
 
 ``--vehicle arducopter-sitl`` flies the real ArduCopter SITL of ../shared/sitl instead (real time; a cold
-boot needs ~41 s before it can arm).
+boot needs ~41 s before it can arm); ``--vehicle px4-sitl`` the real PX4 SITL on its own two links (gcs-voice
+on 14540, the other station on 14550; no router), whose cycle has no GUIDED given back (a station cannot
+enter OFFBOARD without a setpoint stream): take off, fly, Hold by the other station, refused motion, land.
 """
 
 from __future__ import annotations
@@ -49,9 +51,11 @@ from tools.cpu_steal import CpuSample
 from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
 
 ARDUCOPTER_BRAKE, ARDUCOPTER_GUIDED = 17, 4
-SITL_START = Path(__file__).resolve().parent.parent.parent / "shared" / "sitl" / "arducopter" / "start.sh"
-#: a cold ArduCopter SITL arms ~41 s after boot; the bundled simulator at once
-TAKEOFF_TIMEOUT_S = {"gcs-sim": 90.0, "arducopter-sitl": 180.0}
+SITL_DIR = Path(__file__).resolve().parent.parent.parent / "shared" / "sitl"
+SITL_START, PX4_START = SITL_DIR / "arducopter" / "start.sh", SITL_DIR / "px4" / "start.sh"
+#: a cold ArduCopter SITL arms ~41 s after boot, PX4 SITL ~4 s; the bundled simulator at once
+TAKEOFF_TIMEOUT_S = {"gcs-sim": 90.0, "arducopter-sitl": 180.0, "px4-sitl": 90.0}
+PX4_AUTO, PX4_LOITER = mavutil.PX4_CUSTOM_MAIN_MODE_AUTO, mavutil.PX4_CUSTOM_SUB_MODE_AUTO_LOITER
 
 
 def mavproxy_fan_out(master: str, ports: list[int], cwd: Path) -> subprocess.Popen:
@@ -73,20 +77,48 @@ def stop_process(proc: subprocess.Popen) -> None:
         proc.wait()
 
 
+class SoakError(RuntimeError):
+    """A part of the setup could not start (said in one line)."""
+
+
+def _start_sitl(cmd: list[str]) -> int:
+    """Run a ../shared/sitl start script; its process id (its last line says ``PID RUN_DIR``)."""
+    done = subprocess.run(cmd, capture_output=True, text=True)
+    if done.returncode != 0:
+        why = (done.stderr.strip().splitlines() or ["no output"])
+        raise SoakError(f"{cmd[0]} failed: {' / '.join(why[:3])}")
+    return int(done.stdout.strip().splitlines()[-1].split()[0])
+
+
 @contextmanager
-def vehicle(kind: str) -> Iterator[int]:
-    """Start the vehicle; yields the UDP port on 127.0.0.1 it sends to (the router's master)."""
-    port = free_udp_port()
-    if kind == "gcs-sim":
-        with BundledSim(room="open_field", port=port):
-            yield port
+def stations(kind: str, cwd: Path) -> Iterator[tuple[str, str]]:
+    """Start the vehicle and what links it to two stations; yields (gcs-voice's, the other station's) connection.
+
+    gcs-sim and the ArduCopter SITL send to one UDP port: MAVProxy fans it out. PX4 SITL serves both
+    stations itself: its GCS link (to 14550) for QGroundControl, its API link (to 14540) for gcs-voice."""
+    if kind == "px4-sitl":
+        pid = _start_sitl([str(PX4_START)])
+        try:
+            yield "udpin:127.0.0.1:14540", "udpin:127.0.0.1:14550"
+        finally:
+            os.kill(pid, 15)
         return
-    out = subprocess.run([str(SITL_START), str(port)], capture_output=True, text=True, check=True).stdout
-    pid = int(out.strip().splitlines()[-1].split()[0])
+    port, voice_port, qgc_port = free_udp_port(), free_udp_port(), free_udp_port()
+    sim = BundledSim(room="open_field", port=port).start() if kind == "gcs-sim" else None
+    pid = None
+    if sim is None:
+        pid = _start_sitl([str(SITL_START), str(port)])
+    router = mavproxy_fan_out(f"udpin:127.0.0.1:{port}", [voice_port, qgc_port], cwd)
     try:
-        yield port
+        yield f"udpin:127.0.0.1:{voice_port}", f"udpin:127.0.0.1:{qgc_port}"
     finally:
-        os.kill(pid, 15)
+        stop_process(router)
+        if sim is not None:
+            sim.stop()
+        if pid is not None:
+            os.kill(pid, 15)
+
+
 DO_SET_MODE = mavutil.mavlink.MAV_CMD_DO_SET_MODE
 
 
@@ -94,9 +126,10 @@ class Soak:
     """One soak: the bridge, the other station, and what each sent and took."""
 
     def __init__(self, link: VehicleLink, qgc: QgcLikeStation, bus: EventBus, bridge: Bridge,
-                 takeoff_timeout_s: float = 90.0) -> None:
+                 takeoff_timeout_s: float = 90.0, px4: bool = False) -> None:
         self.link, self.qgc, self.bus, self.bridge = link, qgc, bus, bridge
         self.takeoff_timeout_s = takeoff_timeout_s
+        self.px4 = px4
         self.voice_sent: list[int] = []
         self.takeover_s: list[float] = []
         self.takeover_beat_s: list[float] = []
@@ -129,7 +162,7 @@ class Soak:
         takeovers = sum(e.kind == "takeover" for e in self.bus.history)
         beats = self.link.state.heartbeats
         sent_t = time.monotonic()
-        self.qgc.set_mode(ARDUCOPTER_BRAKE)
+        self.qgc.set_mode(*((PX4_AUTO, PX4_LOITER) if self.px4 else (ARDUCOPTER_BRAKE, 0)))
         self.wait(lambda: sum(e.kind == "takeover" for e in self.bus.history) > takeovers, 10, "take-over event")
         self.takeover_s.append(time.monotonic() - sent_t)
         self.takeover_beat_s.append((self.link.state.heartbeat_s or sent_t) - sent_t)
@@ -140,12 +173,13 @@ class Soak:
             self.failures.append(f"cycle {self.cycles}: go_left flown after the take-over")
         else:
             self.refused_after_takeover += 1
-        self.qgc.set_mode(ARDUCOPTER_GUIDED)      # the other station gives it back
-        self.wait(lambda: self.link.state.mode == "GUIDED", 10, "GUIDED given back")
-        for action, hold_s in (("go_right", 1.0), ("stop", 0.5)):
-            if not self.request(action).accepted:
-                raise RuntimeError(f"{action} refused after GUIDED was given back")
-            time.sleep(hold_s)
+        if not self.px4:   # PX4: no station can give OFFBOARD back without a setpoint stream of its own
+            self.qgc.set_mode(ARDUCOPTER_GUIDED)      # the other station gives it back
+            self.wait(lambda: self.link.state.mode == "GUIDED", 10, "GUIDED given back")
+            for action, hold_s in (("go_right", 1.0), ("stop", 0.5)):
+                if not self.request(action).accepted:
+                    raise RuntimeError(f"{action} refused after GUIDED was given back")
+                time.sleep(hold_s)
         self.request("land")
         self.wait(lambda: self.link.state.armed is False, 60, "landed and disarmed")
         self.cycles += 1
@@ -156,12 +190,10 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
         print("soak_two_stations: mavproxy.py is not installed (pip install mavproxy)", file=sys.stderr)
         return 2
     settings = load_settings()
-    voice_port, qgc_port = free_udp_port(), free_udp_port()
     cpu = CpuSample()
     started = time.monotonic()
-    with cpu, tempfile.TemporaryDirectory() as tmp, vehicle(kind) as vehicle_port:
-        router = mavproxy_fan_out(f"udpin:127.0.0.1:{vehicle_port}", [voice_port, qgc_port], Path(tmp))
-        link = VehicleLink(f"udpin:127.0.0.1:{voice_port}", settings)
+    with cpu, tempfile.TemporaryDirectory() as tmp, stations(kind, Path(tmp)) as (voice_at, qgc_at):
+        link = VehicleLink(voice_at, settings)
         send = link.send
         voice_sent: list[int] = []
 
@@ -173,14 +205,14 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
         link.send = counting_send   # counts what gcs-voice asks; every message still goes out unchanged
         soak: Soak | None = None
         try:
-            with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
+            with QgcLikeStation(qgc_at) as qgc:
                 link.open()
                 link.wait_vehicle(60)
                 link.request_telemetry()
                 qgc.wait_for(lambda q: q.vehicle is not None, 30, "the vehicle's HEARTBEAT")
                 bus = EventBus()
                 bridge = Bridge(link, ActionMapper(settings), bus, 1.5)
-                soak = Soak(link, qgc, bus, bridge, TAKEOFF_TIMEOUT_S[kind])
+                soak = Soak(link, qgc, bus, bridge, TAKEOFF_TIMEOUT_S[kind], px4=kind == "px4-sitl")
                 soak.voice_sent = voice_sent
 
                 def script() -> None:
@@ -202,17 +234,21 @@ def run(minutes: float, kind: str = "gcs-sim", cycles: int | None = None) -> int
                 param_values = qgc.param_values
         finally:
             link.close()
-            stop_process(router)
     assert soak is not None
     voice_sent = Counter(soak.voice_sent)
+    voice_due, qgc_due = Counter(voice_sent), Counter(qgc_sent)   # the ACKs each should get
+    if kind == "px4-sitl":   # PX4 answers DO_SET_MODE twice (the mavlink module, then commander)
+        voice_due[DO_SET_MODE] *= 2
+        qgc_due[DO_SET_MODE] *= 2
     voice_took = Counter(a.command for a in link.tracker.acks)
-    wrong_voice = sum(max(0, n - voice_sent[c]) for c, n in voice_took.items())
-    wrong_qgc = sum(max(0, n - qgc_sent[c]) for c, n in qgc_took.items())
-    unanswered_voice = sum(max(0, n - voice_took[c]) for c, n in voice_sent.items())
-    unanswered_qgc = sum(max(0, n - qgc_took[c]) for c, n in qgc_sent.items())
+    wrong_voice = sum(max(0, n - voice_due[c]) for c, n in voice_took.items())
+    wrong_qgc = sum(max(0, n - qgc_due[c]) for c, n in qgc_took.items())
+    unanswered_voice = sum(max(0, n - voice_took[c]) for c, n in voice_due.items())
+    unanswered_qgc = sum(max(0, n - qgc_took[c]) for c, n in qgc_due.items())
     elapsed = time.monotonic() - started
-    print(f"soak ({kind}): {elapsed / 60:.1f} min, {soak.cycles} cycles (take off, fly, BRAKE by the other station, "
-          f"GUIDED given back, fly, land); {cpu.describe()}, load average {os.getloadavg()[0]:.1f} at the end "
+    story = ("take off, fly, Hold by the other station, land" if kind == "px4-sitl"
+             else "take off, fly, BRAKE by the other station, GUIDED given back, fly, land")
+    print(f"soak ({kind}): {elapsed / 60:.1f} min, {soak.cycles} cycles ({story}); {cpu.describe()}, load average {os.getloadavg()[0]:.1f} at the end "
           "(a shared 2-core machine)")
     print(f"gcs-voice (255/{settings.gcs_component_id}): {sum(voice_sent.values())} commands, "
           f"{sum(voice_took.values())} ACKs taken, unanswered {unanswered_voice}, taken without a command {wrong_voice}")
@@ -243,9 +279,14 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--minutes must be within (0, 120]")
     if args.cycles is not None and not 0 < args.cycles <= 100:
         parser.error("--cycles must be within 1-100")
-    if args.vehicle == "arducopter-sitl" and not SITL_START.exists():
-        parser.error(f"no ArduCopter SITL at {SITL_START}")
-    return run(args.minutes, args.vehicle, args.cycles)
+    start = {"arducopter-sitl": SITL_START, "px4-sitl": PX4_START}.get(args.vehicle)
+    if start is not None and not start.exists():
+        parser.error(f"no SITL at {start}")
+    try:
+        return run(args.minutes, args.vehicle, args.cycles)
+    except SoakError as exc:
+        print(f"soak_two_stations: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
