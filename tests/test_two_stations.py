@@ -234,6 +234,17 @@ def _check_common(story: Story, qgc: QgcLikeStation, velocity_mode: str, taken_m
     assert {a[1] for a in own} <= sent, "QGroundControl got an ACK for a command it never sent"
 
 
+def _fly_through_mavproxy(master: str, ports: tuple[int, int], cwd: Path) -> tuple[Story, QgcLikeStation]:
+    """MAVProxy on ``master`` with ``--out`` to gcs-voice (first port) and the QGroundControl-like station."""
+    voice_port, qgc_port = ports
+    router = mavproxy_fan_out(master, [voice_port, qgc_port], cwd)
+    try:
+        with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
+            return _fly_beside_qgc(f"udpin:127.0.0.1:{voice_port}", qgc, "ardupilot"), qgc
+    finally:
+        stop_process(router)
+
+
 @pytest.fixture()
 def ports() -> Iterator[tuple[int, int]]:
     yield free_udp_port(), free_udp_port()
@@ -243,14 +254,8 @@ def test_mavproxy_fan_out_arducopter(tmp_path: Path, ports: tuple[int, int]) -> 
     """sim_vehicle.py's setup: vehicle -> MAVProxy -> --out to gcs-voice and to QGroundControl."""
     require_parts("sim_bridge.cli")
     _need_mavproxy()
-    voice_port, qgc_port = ports
     with BundledSim(speedup=SPEEDUP, room="open_field") as sim:
-        router = mavproxy_fan_out(f"udpin:127.0.0.1:{sim.port}", [voice_port, qgc_port], tmp_path)
-        try:
-            with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
-                story = _fly_beside_qgc(f"udpin:127.0.0.1:{voice_port}", qgc, "ardupilot")
-        finally:
-            stop_process(router)
+        story, qgc = _fly_through_mavproxy(f"udpin:127.0.0.1:{sim.port}", ports, tmp_path)
     _check_common(story, qgc, "GUIDED", "BRAKE")
     takeover = next(e for e in story.events if e["kind"] == "takeover")
     # behind a router gcs-voice hears the ACK meant for QGroundControl: it knows who took over, and says so
@@ -283,17 +288,11 @@ def test_serial_radio_shared_through_mavproxy(tmp_path: Path, ports: tuple[int, 
     """One telemetry radio on a serial port (here a pseudo-terminal), shared by MAVProxy with both stations."""
     require_parts("sim_bridge.cli")
     _need_mavproxy()
-    voice_port, qgc_port = ports
     sim_port = free_udp_port()
     radio = _SerialRadio(sim_port)
     try:
         with BundledSim(speedup=SPEEDUP, room="open_field", port=sim_port) as _sim:
-            router = mavproxy_fan_out(f"{radio.device},57600", [voice_port, qgc_port], tmp_path)
-            try:
-                with QgcLikeStation(f"udpin:127.0.0.1:{qgc_port}") as qgc:
-                    story = _fly_beside_qgc(f"udpin:127.0.0.1:{voice_port}", qgc, "ardupilot")
-            finally:
-                stop_process(router)
+            story, qgc = _fly_through_mavproxy(f"{radio.device},57600", ports, tmp_path)
     finally:
         radio.close()
     _check_common(story, qgc, "GUIDED", "BRAKE")
