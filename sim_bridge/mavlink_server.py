@@ -174,9 +174,11 @@ class SimServer:
         if not (verdict and self.autopilot.acks_on_links_that_saw_the_sender):
             self.send(ack, link)
             return
+        self.send(ack, link)   # logged once; the same ACK on the other links that saw the sender
         sender = (src_system, src_component)
-        for target in [link] + [other for other in self.links if other is not link and sender in other.seen]:
-            self.send(ack, target)
+        for other in self.links:
+            if other is not link and sender in other.seen and not other.closed:
+                other.send_bytes(ack.pack(other.mav))
 
     def _tlog_time_us(self) -> int:
         return int((self.epoch_unix_s + self.vehicle.time_s) * 1e6)
