@@ -166,8 +166,19 @@ class SimServer:
         if msg is not None:
             self.send(msg)
 
-    def _ack(self, command: int, result: int, link: Link, src_system: int, src_component: int) -> None:
-        self.send(self._tlog_mav.command_ack_encode(command, result, 0, 0, src_system, src_component), link)
+    def _ack(self, command: int, result: int, link: Link, src_system: int, src_component: int,
+             verdict: bool = False) -> None:
+        """A COMMAND_ACK addressed to the sender, on its link; a personality's ``verdict`` on PX4 goes to
+        every link that saw the sender (see ``Autopilot.acks_on_links_that_saw_the_sender``)."""
+        ack = self._tlog_mav.command_ack_encode(command, result, 0, 0, src_system, src_component)
+        if not (verdict and self.autopilot.acks_on_links_that_saw_the_sender):
+            self.send(ack, link)
+            return
+        self.send(ack, link)   # logged once; the same ACK on the other links that saw the sender
+        sender = (src_system, src_component)
+        for other in self.links:
+            if other is not link and sender in other.seen and not other.closed:
+                other.send_bytes(ack.pack(other.mav))
 
     def _tlog_time_us(self) -> int:
         return int((self.epoch_unix_s + self.vehicle.time_s) * 1e6)
@@ -225,6 +236,7 @@ class SimServer:
             self.tlog.write(self._tlog_time_us(), bytes(msg.get_msgbuf()))
         if not self.signing.accept(msg):       # with a key: unsigned, wrongly signed or replayed
             return
+        link.seen.add((msg.get_srcSystem(), msg.get_srcComponent()))
         target = getattr(msg, "target_system", 0)
         component = getattr(msg, "target_component", 0)
         if target not in (0, SYSTEM_ID) or component not in (0, COMPONENT_ID) or msg.get_srcSystem() == SYSTEM_ID:
@@ -245,8 +257,11 @@ class SimServer:
         else:
             params = (msg.param1, msg.param2, msg.param3, msg.param4, msg.param5, msg.param6, msg.param7)
         ctx = CommandContext(msg.command, params, link, msg.get_srcSystem(), msg.get_srcComponent())
-        for result in self._common_command(ctx) or self.autopilot.on_command(ctx):
-            self._ack(ctx.command, result, link, ctx.src_system, ctx.src_component)
+        common = self._common_command(ctx)
+        results = common or self.autopilot.on_command(ctx)
+        for i, result in enumerate(results):   # PX4's DO_SET_MODE: the module's ACK, then commander's verdict
+            verdict = common is None and i == len(results) - 1
+            self._ack(ctx.command, result, link, ctx.src_system, ctx.src_component, verdict)
         for reply in ctx.replies:
             self.send(reply, link)
 
@@ -282,8 +297,9 @@ class SimServer:
     def _on_set_mode(self, msg: Any, link: Link) -> None:
         if msg.target_system not in (0, SYSTEM_ID):
             return
-        for result in self.autopilot.on_set_mode(msg):
-            self._ack(mavlink.MAV_CMD_DO_SET_MODE, result, link, msg.get_srcSystem(), msg.get_srcComponent())
+        for result in self.autopilot.on_set_mode(msg):   # PX4: commander's ACK only
+            self._ack(mavlink.MAV_CMD_DO_SET_MODE, result, link, msg.get_srcSystem(), msg.get_srcComponent(),
+                      verdict=True)
 
     def _on_setpoint(self, msg: Any, link: Link) -> None:
         self.autopilot.on_setpoint(msg)

@@ -52,6 +52,8 @@ class Link:
     mav: mavlink.MAVLink = field(init=False)
     stats: LinkStats = field(default_factory=LinkStats)
     closed: bool = False
+    #: (system, component) of every sender heard on this link (PX4 routes its ACKs by this)
+    seen: set = field(default_factory=set)
 
     def __post_init__(self) -> None:
         self.mav = mavlink.MAVLink(None, srcSystem=1, srcComponent=1)

@@ -41,6 +41,7 @@ class ScriptedVehicle:
         self.target_height_m = 0.0
         self.heading_deg = heading_deg
         self.sending = True
+        self._sender = (255, 190)  # whoever sent the last COMMAND_LONG: its ACKs go back to it
         self.mav_type = mav_type
         self.mode_after_arm = mode_after_arm  # e.g. ArduCopter's RC switch putting STABILIZE back
         self.received: list[tuple[float, Any]] = []
@@ -81,6 +82,7 @@ class ScriptedVehicle:
                     with self.lock:
                         self.received.append((time.monotonic(), msg))
                     if msg.get_type() == "COMMAND_LONG":
+                        self._sender = (msg.get_srcSystem(), msg.get_srcComponent())
                         self._command(msg)
                 msg = self.conn.recv_match(blocking=False)
             now = time.monotonic()
@@ -108,7 +110,8 @@ class ScriptedVehicle:
         self._send(self.conn.mav.extended_sys_state_encode(0, landed))
 
     def _ack(self, command: int, result: int) -> None:
-        self._send(self.conn.mav.command_ack_encode(command, result, 0, 0, 255, 190))
+        # addressed back to the sender, as ArduCopter and PX4 do (../shared/tlogs/ARDUCOPTER.md)
+        self._send(self.conn.mav.command_ack_encode(command, result, 0, 0, *self._sender))
 
     def _text(self, severity: int, text: str) -> None:
         self._send(self.conn.mav.statustext_encode(severity, text.encode()))

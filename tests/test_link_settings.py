@@ -12,7 +12,7 @@ from gcs_voice.settings import SettingsError, load_settings
 def test_defaults_are_sensible() -> None:
     s = load_settings()
     assert (s.horizontal_speed_m_s, s.vertical_speed_m_s, s.floor_m) == (0.5, 0.3, 0.5)
-    assert s.setpoint_hz == 10 and s.link_lost_s == 2 and (s.gcs_system_id, s.gcs_component_id) == (255, 190)
+    assert s.setpoint_hz == 10 and s.link_lost_s == 2 and (s.gcs_system_id, s.gcs_component_id) == (255, 231)
 
 
 def test_user_file_then_flags(tmp_path: Path) -> None:

@@ -39,7 +39,7 @@ def test_heartbeat_identity_and_telemetry_request(tmp_path: Path) -> None:
         beats = vehicle.messages("HEARTBEAT")
         assert beats, "no GCS heartbeat"
         _, beat = beats[0]
-        assert (beat.type, beat.get_srcSystem(), beat.get_srcComponent()) == (mavutil.mavlink.MAV_TYPE_GCS, 255, 190)
+        assert (beat.type, beat.get_srcSystem(), beat.get_srcComponent()) == (mavutil.mavlink.MAV_TYPE_GCS, 255, 231)
         asked = {int(m.param1): m.param2 for _, m in vehicle.messages("COMMAND_LONG") if m.command == 511}
         assert asked == {32: pytest.approx(1e5), 30: pytest.approx(1e5), 245: pytest.approx(1e6),
                          33: pytest.approx(5e5), 132: pytest.approx(1e5),

@@ -50,7 +50,8 @@ class LinkChannel:
         except OSError as exc:
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
-        self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s)
+        self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s,
+                                           gcs_component_id=self.settings.gcs_component_id)
         self._conn: mavutil.mavfile | None = None
         self._lock = threading.RLock()
         self._changed = threading.Condition(self._lock)

@@ -26,6 +26,10 @@ _SETTING_FLAGS: dict[str, tuple[str, str]] = {
     "--ceiling": ("ceiling_m", "never climb above this height above home"),
     "--fence": ("fence_radius_m", "never move further than this from home"),
     "--takeoff-alt": ("takeoff_altitude_m", "take_off climbs to this height above home"),
+    "--gcs-system-id": ("gcs_system_id", "our MAVLink system id (default 255: what ArduPilot's MAV_GCS_SYSID "
+                                         "counts as its ground station)"),
+    "--gcs-component-id": ("gcs_component_id", "our MAVLink component id (default 231; QGroundControl and "
+                                               "Mission Planner are 190, MAVProxy 230)"),
 }
 
 

@@ -108,6 +108,10 @@ class VehicleState:
     #: the last pre-arm complaint the vehicle made ("PreArm: Need Position Estimate", "Arm: ...",
     #: "Preflight Fail: ..."), cleared when it arms
     prearm_text: str | None = None
+    #: another ground station on this vehicle, seen by the COMMAND_ACKs addressed to it: its (system,
+    #: component), and when (tracker clock) it last had a mode change acknowledged (DO_SET_MODE)
+    other_station: tuple[int, int] | None = None
+    other_station_mode_s: float | None = None
 
     @property
     def autopilot(self) -> str | None:
@@ -157,6 +161,9 @@ class VehicleStateTracker:
 
     gcs_system_id: int = 255
     link_lost_s: float = 2.0
+    #: our component: a COMMAND_ACK addressed to (gcs_system_id, another component) is another station's
+    #: (QGroundControl is 255/190); 0 takes every ACK addressed to our system
+    gcs_component_id: int = 0
     state: VehicleState = field(default_factory=VehicleState)
     acks: deque = field(default_factory=lambda: deque(maxlen=256))
     texts: deque = field(default_factory=lambda: deque(maxlen=256))
@@ -268,8 +275,20 @@ class VehicleStateTracker:
         self.state = replace(self.state, home_alt_amsl_m=msg.altitude / 1000.0)
 
     def _command_ack(self, msg: mavlink.MAVLink_message, now_s: float) -> list[CommandAck]:
-        target = getattr(msg, "target_system", 0)
-        if target not in (0, self.gcs_system_id):
+        """Ours when addressed to our system and component (0 = broadcast, as MAVLink 1 ACKs are).
+
+        Behind a router (MAVProxy, mavlink-router) or on PX4's second link we also hear the ACKs meant for
+        the other ground stations: those are not answers to our commands, only a sign that someone else
+        commands this vehicle (kept in ``other_station``)."""
+        target = int(getattr(msg, "target_system", 0) or 0)
+        component = int(getattr(msg, "target_component", 0) or 0)
+        ours = target in (0, self.gcs_system_id) and (
+            target == 0 or component == 0 or not self.gcs_component_id or component == self.gcs_component_id)
+        if not ours:
+            mode = self.state.other_station_mode_s
+            if int(msg.command) == mavlink.MAV_CMD_DO_SET_MODE and int(msg.result) == mavlink.MAV_RESULT_ACCEPTED:
+                mode = now_s
+            self.state = replace(self.state, other_station=(target, component), other_station_mode_s=mode)
             return []
         ack = CommandAck(now_s, int(msg.command), int(msg.result))
         self.acks.append(ack)

@@ -17,6 +17,10 @@ the stream the rest); the bridge never sends one itself. Rules, in order:
   setpoint after it returns is a stop (the link and the mapper both enforce this; we refuse and say so);
 - motion (even stop) while disarmed, outside the velocity mode, or during take-off/landing: refused with
   the reason (a setpoint would cut an ArduCopter take-off short near the ground);
+- the other station is in charge when it says so: a HEARTBEAT that shows the armed vehicle out of the
+  velocity mode we flew in (QGroundControl's BRAKE / LOITER / Hold, or a failsafe's RTL / LAND) ends the
+  voice motion (the stream stops; the bridge never asks for GUIDED / OFFBOARD back) and is said once as a
+  ``takeover`` event; voice flies again only once someone puts the velocity mode back;
 - disarm while flying: refused (a misheard word must not drop the vehicle); land while disarmed (after
   a crash): refused, so that it cannot look done;
 - take-off / land / arm / disarm run in a worker thread so the loop keeps watching the link;
@@ -126,6 +130,7 @@ class Bridge:
         self.exit_code = 0
         self.flying_ready = threading.Event()  # set when a take-off finished (scripts wait on it)
         self._landing = False  # an accepted "land" not yet followed by a take-off: the end waits for touchdown
+        self._mode_seen: str | None = None  # the mode at the last look (a take-over is a change from the velocity mode)
 
     # ---- inputs (any thread) ----------------------------------------------------------------------
     def submit(self, request: Request) -> Request:
@@ -234,6 +239,7 @@ class Bridge:
                               "nothing is commanded until it returns, then a stop", state="lost")
                 self._link_ok = False
                 self._heartbeats_at_loss = state.heartbeats
+        self._watch_mode(state)
         while self.mapper.events:  # the mapper's automatic changes (floor reached, link lost), said once
             self.bus.emit("warning", self.mapper.events.popleft(), source="mapper")
         reason = self.mapper.limit_reason
@@ -242,6 +248,42 @@ class Bridge:
                 self.bus.emit("refused", f"{self.mapper.action} limited: {reason}", action=self.mapper.action,
                               reason=reason)
             self._limit_reason = reason
+
+    #: an ACK of a mode change for another station this recent explains the next mode change (tracker clock)
+    TAKEOVER_ACK_S = 3.0
+    #: how long the take-over event waits for that ACK when it comes after the HEARTBEAT
+    TAKEOVER_ACK_GRACE_S = 0.3
+
+    def _watch_mode(self, state: VehicleState) -> None:
+        """Another station (or the vehicle itself) took the vehicle out of the velocity mode: stop flying it.
+
+        Only a change seen while idle counts: our own take-off and landing change the mode too. The stream
+        stops, so that a later switch back to GUIDED by the other station does not resume a stale voice
+        motion (in GUIDED without setpoints ArduCopter holds where it is)."""
+        previous, self._mode_seen = self._mode_seen, state.mode
+        velocity_mode = state.profile.velocity_mode if state.profile else None
+        if (previous is None or state.mode is None or previous == state.mode or previous != velocity_mode
+                or not state.armed or self._busy or self._landing or not state.link_ok):
+            return
+        self.mapper.apply("stop", state)
+        self.link.stop_stream()
+        changed_s = state.heartbeat_s or 0.0
+
+        def acked(s: VehicleState) -> bool:
+            return s.other_station_mode_s is not None and s.other_station_mode_s >= changed_s - self.TAKEOVER_ACK_S
+
+        # the other station's ACK may come just after the HEARTBEAT that shows its mode (gcs-sim sends the
+        # HEARTBEAT first; ArduCopter sends both within 10 ms): wait a moment for it, the stream already stopped
+        seen = self.link.wait_for(acked, self.TAKEOVER_ACK_GRACE_S)
+        by_station = seen is not None
+        station = seen.other_station if seen is not None else None
+        if by_station:
+            msg = f"another station took over: {state.mode}"
+        else:  # PX4's second link carries no other station's ACKs; a failsafe or an RC switch sends none
+            msg = f"vehicle left {velocity_mode}: {state.mode} (another station, the RC switch or a failsafe)"
+        self.bus.emit("takeover", msg + f"; voice motions wait until it is back in {velocity_mode}",
+                      mode=state.mode, previous=previous, by="station" if by_station else "unknown",
+                      station=list(station) if station else None)
 
     # ---- carrying out one request -------------------------------------------------------------------
     def _refuse(self, request: Request, reason: str) -> None:
@@ -278,9 +320,12 @@ class Bridge:
                                 else "vehicle is not armed: nothing to stop")
         velocity_mode = state.profile.velocity_mode if state.profile else None
         if velocity_mode and state.mode != velocity_mode and not self._busy:
-            # Someone else (the autopilot's failsafe, an RC switch, a landing) has the vehicle: do not grab it.
-            return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: "
-                                         "say 'take off' to fly by voice again")
+            # Someone else (another station, the autopilot's failsafe, an RC switch, a landing) has the
+            # vehicle: do not grab it. On the ground "take off" starts again; in the air whoever took it
+            # gives it back by switching to the velocity mode.
+            how = ("say 'take off' to fly by voice again" if _on_ground(state)
+                   else f"voice flies again once it is switched back to {velocity_mode}")
+            return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: {how}")
         decided_s = time.time()  # before the mapper decides (see LinkChannel.send_setpoint)
         mapped = self.mapper.apply(action, state)
         # the link streams the mapper's setpoint; this one goes at once, not at the next 10 Hz tick

@@ -34,6 +34,10 @@ KINDS: dict[str, str] = {
     "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
     "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
+    "takeover": "the vehicle left the velocity mode while voice flew it (another station, the RC switch or a "
+                "failsafe); the voice motion and the setpoint stream stopped: mode, previous, by (station when the "
+                "ACK of another station's mode change was heard, else unknown), station ([system, component] or "
+                "null); voice motions are refused until the vehicle is back in the velocity mode",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }

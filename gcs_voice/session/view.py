@@ -47,7 +47,7 @@ class ViewState:
                 self.last_command = record
             elif event.kind == "rejected":
                 self.rejected.appendleft(record)
-            elif event.kind in ("refused", "warning", "error", "link", "flight", "late", "spotted"):
+            elif event.kind in ("refused", "warning", "error", "link", "flight", "late", "spotted", "takeover"):
                 self.warnings.appendleft(record)
             elif event.kind == "vehicle":
                 self.vehicle_texts.appendleft(record)
@@ -117,7 +117,7 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
     warn.add_column(style="dim")
     warn.add_column()
     for w in warnings:
-        style = ("red" if w["kind"] in ("refused", "error", "late") or w.get("state") == "lost"
+        style = ("red" if w["kind"] in ("refused", "error", "late", "takeover") or w.get("state") == "lost"
                  else "bold cyan" if w["kind"] == "spotted" else "white")
         warn.add_row(_clock(w["t"]), Text(w["msg"], style=style))
     for v in texts:

@@ -65,6 +65,13 @@ class Autopilot:
     chunks_long_texts = False
     #: a touchdown is reported as "SIM Hit ground at ..." (ArduPilot SITL does; PX4 SIH does not)
     touchdown_is_a_hit = False
+    #: where the COMMAND_ACKs of the personality's own commands go. ArduPilot answers on the channel the
+    #: command came in on (GCS_MAVLINK::handle_command_long). PX4's commander publishes its verdict, and
+    #: every MAVLink instance sends it on its own link if the addressee (system, component) was seen
+    #: there (mavlink_main.cpp, ``component_was_seen``): with QGroundControl on 14550 and an API on
+    #: 14540, each hears only its own ACKs, unless both share one identity. The mavlink module's own
+    #: first ACK of DO_SET_MODE stays on the receiving link.
+    acks_on_links_that_saw_the_sender = False
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:

@@ -52,6 +52,7 @@ class PX4(Autopilot):
                              body_yaw_relative=False, any_bit_ignores_group=False, body_position_ignored=True)
     prearm_bit_present = False   # PX4.md: only onboard_control_sensors_health gets PREARM_CHECK when armable
     chunks_long_texts = True
+    acks_on_links_that_saw_the_sender = True
 
     def __init__(self, *args: Any, **kwargs: Any) -> None:
         self.mode: tuple[int, int] = HOLD
