@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from rapidfuzz.distance import Levenshtein
+from rapidfuzz.distance import LCSseq, Levenshtein
 
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding.decision import Decision
@@ -121,7 +121,8 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = (_negation_reason(recognition, best) or self._transcript_reason(recognition, best)) if rejecting else ""
+        reason = (_negation_reason(recognition, best) or self._weak_match_reason(recognition, best)
+                  or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
@@ -249,6 +250,30 @@ class Matcher:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
         return ""
+
+    def _weak_match_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """What the engine itself heard must share the sounds of the phrase it is matched to (``min_shared``).
+
+        A score near that of the engine's own transcript (the margin) says the phrase is about as likely as
+        what was heard, not that it was said: one speaker's "adelante", heard "A" and "Ailan", came within the
+        margin and the class gap of "a la derecha" and flew right. A transcript that has less than
+        ``min_shared`` of the phrase's sounds in it, in order (:meth:`shared`), is not that phrase, however
+        near its score; nothing heard at all shares none.
+        """
+        limit = transcript_limits(recognition.engine, self.thresholds_path, recognition.lang).get("min_shared")
+        if limit is None or not recognition.hypotheses:
+            return ""
+        heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
+        self.prepare([best.dictionary])
+        shared = self.shared(heard, best.phrase.match_key, best.dictionary) if heard else 0.0
+        if shared >= limit:
+            return ""
+        return (f"not a command: heard '{recognition.transcript}', which has {shared:.0%} of the sounds of "
+                f"'{best.phrase.text}' (< {limit:.0%})")
+
+    def shared(self, heard: str, phrase: str, dictionary: Dictionary) -> float:
+        """The fraction of ``phrase`` found in ``heard``, in order (characters; the phonetic matcher: sounds)."""
+        return LCSseq.similarity(heard, phrase) / len(phrase) if phrase else 1.0
 
     def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
         """Normalised distance between two single words (characters; the phonetic matcher: sounds)."""
