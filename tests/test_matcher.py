@@ -392,3 +392,14 @@ def test_a_transcript_sharing_almost_no_sound_with_its_phrase_does_nothing_in_ev
             decision = matcher.decide(_scored_in(phrase.text, letter.upper(), lang), [dictionary])
             assert decision.action is None and "of the sounds of" in decision.reason, (phrase, decision)
     assert weak >= 2, "the case must be tried on phrases of every language"  # Korean: a syllable is a letter
+
+
+def test_a_stray_word_is_not_joined_to_a_word_of_the_class() -> None:
+    """espeak-ng "gire a la izquierda" (turn_left) was heard "Y la la izquierda.", within the margin of "hacia la
+    izquierda" (go_left): "y" + "la" sounds near "la", so the stray "y" was read as half of a split word and the
+    drone would have moved left instead of turning (python -m tools.bench_spanish). A pair is joined only when it
+    sounds nearer a word of the class than its second word alone."""
+    decision = get_matcher("phonetic").decide(_scored_in("hacia la izquierda", "Y la la izquierda.", "es"), [ES])
+    assert decision.action is None and "'y' is in no go_left phrase" in decision.reason, decision
+    assert get_matcher("phonetic").decide(_scored_in("detenerse", "De tenerse.", "es"), [ES]).action == "stop"
+    assert get_matcher("phonetic").decide(_scored("stop", "Don't stop!", 0.0), [EN]).action == "stop"

@@ -225,9 +225,10 @@ TUNED = {"whisper-score": ("evidence.whisper-score", {
 TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12")
 
 
-def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str) -> Path:
-    """A copy of thresholds.toml with ``[table] key = value`` for each item (replaced or added)."""
-    text = THRESHOLDS_PATH.read_text(encoding="utf-8")
+def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str,
+                     source: Path | None = None) -> Path:
+    """A copy of thresholds.toml (or of ``source``) with ``[table] key = value`` for each item (replaced or added)."""
+    text = (source or THRESHOLDS_PATH).read_text(encoding="utf-8")
     header = f"[{table}]"
     if header not in text:
         text += f"\n{header}\n"

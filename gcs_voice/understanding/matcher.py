@@ -223,7 +223,9 @@ class Matcher:
         if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.match_key.split()}
-        vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()}
+        # a negation word is judged by its own rule (_negation_reason): it refuses any class but a stop, and
+        # "Don't stop!" stops
+        vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()} | set(best.dictionary.negations)
         commands = {p.match_key: p.action for p in best.dictionary.phrases
                     if " " not in p.match_key and p.action != best.phrase.action}
         self.prepare([best.dictionary])
@@ -242,8 +244,11 @@ class Matcher:
             word = heard_words[i]
             alone = distance(word)
             joined = distance(word + heard_words[i + 1]) if i + 1 < len(heard_words) else 1.0
-            if joined <= limit and joined < alone:
-                i += 2  # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise")
+            # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise"): the pair
+            # sounds nearer a word of the class than either half; not a stray word before a word of the class
+            # ("Y la la izquierda" for "gire a la izquierda": "yla" is near "la", and "la" alone is nearer)
+            if joined <= limit and joined < alone and (joined < distance(heard_words[i + 1])):
+                i += 2
             elif alone <= limit:
                 i += 1
             else:
