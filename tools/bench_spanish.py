@@ -277,6 +277,18 @@ def report() -> str:
                          f"{pct(c.sentences_acted, c.sentences)} |")
     lines += ["", "Other speech: the `passing` (a command word in passing), `ood` and `near` sentences of "
               "tools/corpus_sentences.toml.", ""]
+    # what the weak-match guard costs here: the same decisions without it (min_shared 0)
+    with tempfile.TemporaryDirectory() as tmp:
+        unguarded = get_matcher(DEFAULT_MATCHER, thresholds_path=_with_thresholds(
+            "transcript.whisper-score", {"min_shared": 0.0}, Path(tmp), "unguarded"))
+        lines += ["Without the weak-match guard (`min_shared` 0 instead of as shipped), the same utterances:", "",
+                  "| split | condition | commands right | wrong | other speech acted on |", "| --- | --- | --- | --- | --- |"]
+        for split in ("dev", "test"):
+            for cond in CONDITIONS:
+                c = count([i for i in every if i.split == split and i.condition == cond], cache, unguarded)
+                lines.append(f"| {split} | {cond} | {pct(c.right, c.commands)} | {pct(c.wrong, c.commands)} | "
+                             f"{pct(c.sentences_acted, c.sentences)} |")
+    lines.append("")
     acted = [(i, d) for i, _, d in missed if i.action is None]
     wrong = [(i, r, d) for i, r, d in missed if i.action and d.action]
     if wrong or acted:
