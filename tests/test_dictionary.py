@@ -30,6 +30,40 @@ def test_paper_phrases_present() -> None:
     assert "muévete" in es.vocabulary()
 
 
+#: the nearest two phrases of different classes may sound: the English pair "increase altitude" / "decrease
+#: altitude" (0.154), which shipped from the start; a new form nearer than that to another class is a mishearing
+#: waiting to happen ("asciende" / "desciende": 0.22, kept out of es.toml for being opposite motions at one sound)
+NEAREST_RIVALS = 0.15
+
+
+@pytest.mark.parametrize("lang", ["en", "es"])
+def test_no_phrase_sounds_almost_like_a_phrase_of_another_class(lang: str) -> None:
+    from gcs_voice.understanding.phonemes import ESPEAK_VOICE, phoneme_tokens
+    from gcs_voice.understanding.phonetic import phonetic_distance
+
+    d = load_language(lang)
+    sounds = {p.match_key: phoneme_tokens(p.match_key, ESPEAK_VOICE[lang]) for p in d.phrases}
+    near = [(a.text, b.text, round(phonetic_distance(sounds[a.match_key], sounds[b.match_key]), 2))
+            for i, a in enumerate(d.phrases) for b in d.phrases[i + 1:]
+            if a.action != b.action and phonetic_distance(sounds[a.match_key], sounds[b.match_key]) < NEAREST_RIVALS]
+    assert not near, near
+
+
+@pytest.mark.parametrize(("lang", "said", "action"), [
+    ("es", "detener", "stop"), ("es", "pare", "stop"), ("es", "parar", "stop"), ("es", "deténgase", "stop"),
+    ("es", "avanzar", "go_forward"), ("es", "avance", "go_forward"), ("es", "retroceder", "go_back"),
+    ("es", "suba", "up"), ("es", "bajar", "down"), ("es", "gire a la derecha", "turn_right"),
+    ("es", "girar a la izquierda", "turn_left"), ("es", "vaya a la derecha", None),
+    ("en", "halt", "stop"), ("en", "freeze", "stop"), ("en", "move ahead", "go_forward"),
+    ("en", "go backwards", "go_back"), ("en", "rotate right", "turn_right"),
+])
+def test_the_forms_people_use_are_phrases(lang: str, said: str, action: str | None) -> None:
+    """Infinitives, tú and usted imperatives (issue 31: "detener" was missing, and 110 of 120 real "detener" did
+    nothing); a form left out on purpose (es.toml says why) stays out."""
+    phrase = load_language(lang).by_key.get(normalize_text(said))
+    assert (phrase.action if phrase else None) == action
+
+
 def test_languages_listed() -> None:
     assert {"en", "es"} <= set(available_languages())
 

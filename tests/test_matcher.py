@@ -350,3 +350,56 @@ def test_a_negation_in_what_was_heard_refuses_the_command() -> None:
     spanish = Recognition(spanish.hypotheses, spanish.engine, "es", spanish.audio_s, spanish.extra,
                           transcript=spanish.transcript)
     assert "'no' says not to" in get_matcher("phonetic").decide(spanish, [ES]).reason
+
+
+def _scored_in(phrase: str, transcript: str, lang: str, margin: float = 0.0, gap: float = 2.0) -> Recognition:
+    scored = _scored(phrase, transcript, margin, gap)
+    return Recognition(scored.hypotheses, scored.engine, lang, scored.audio_s, scored.extra, transcript=transcript)
+
+
+def test_the_weak_matches_that_flew_the_wrong_way_do_nothing() -> None:
+    """Issue 31: a real speaker's "adelante" was heard "A" and "Ailan", came within the margin (-0.06 to -0.56) and
+    the class gap (1.3 to 2.2) of "a la derecha", and flew go_right. What Whisper heard shares almost none of the
+    phrase's sounds: no action, and the reason says how little it shared."""
+    for transcript, margin, gap in (("A", -0.06, 1.3), ("Ailan", -0.56, 2.2), ("A.", -0.3, 1.8)):
+        decision = get_matcher("phonetic").decide(_scored_in("a la derecha", transcript, "es", margin, gap), [ES])
+        assert decision.action is None, decision
+        assert "of the sounds of 'a la derecha'" in decision.reason, decision
+    # the same evidence with the phrase (or a misheard word that sounds like it) heard still acts
+    for transcript in ("A la derecha.", "Derecha", "a la derecha"):
+        decision = get_matcher("phonetic").decide(_scored_in("a la derecha", transcript, "es", -0.06, 1.3), [ES])
+        assert decision.action == "go_right", decision
+
+
+@pytest.mark.parametrize("lang", ["en", "es", "ko"])
+def test_a_transcript_sharing_almost_no_sound_with_its_phrase_does_nothing_in_every_language(lang: str) -> None:
+    """The same case in every bundled language: every phrase scored within the margin and the class gap acts when
+    Whisper heard it, and does nothing when Whisper heard only one letter of it (less than min_shared of its
+    sounds) or nothing at all."""
+    from gcs_voice.understanding.thresholds import transcript_limits
+
+    dictionary = load_language(lang)
+    limit = transcript_limits("whisper-score", lang=lang)["min_shared"]
+    matcher = get_matcher("phonetic")
+    matcher.prepare([dictionary])
+    weak = 0
+    for phrase in dictionary.phrases:
+        assert matcher.decide(_scored_in(phrase.text, phrase.text, lang), [dictionary]).action == phrase.action
+        assert matcher.decide(_scored_in(phrase.text, "", lang), [dictionary]).action is None, phrase
+        letter = phrase.match_key[:1]
+        if matcher.shared(letter, phrase.match_key, dictionary) < limit:
+            weak += 1
+            decision = matcher.decide(_scored_in(phrase.text, letter.upper(), lang), [dictionary])
+            assert decision.action is None and "of the sounds of" in decision.reason, (phrase, decision)
+    assert weak >= 2, "the case must be tried on phrases of every language"  # Korean: a syllable is a letter
+
+
+def test_a_stray_word_is_not_joined_to_a_word_of_the_class() -> None:
+    """espeak-ng "gire a la izquierda" (turn_left) was heard "Y la la izquierda.", within the margin of "hacia la
+    izquierda" (go_left): "y" + "la" sounds near "la", so the stray "y" was read as half of a split word and the
+    drone would have moved left instead of turning (python -m tools.bench_spanish). A pair is joined only when it
+    sounds nearer a word of the class than its second word alone."""
+    decision = get_matcher("phonetic").decide(_scored_in("hacia la izquierda", "Y la la izquierda.", "es"), [ES])
+    assert decision.action is None and "'y' is in no go_left phrase" in decision.reason, decision
+    assert get_matcher("phonetic").decide(_scored_in("detenerse", "De tenerse.", "es"), [ES]).action == "stop"
+    assert get_matcher("phonetic").decide(_scored("stop", "Don't stop!", 0.0), [EN]).action == "stop"

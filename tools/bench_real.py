@@ -225,9 +225,10 @@ TUNED = {"whisper-score": ("evidence.whisper-score", {
 TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12")
 
 
-def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str) -> Path:
-    """A copy of thresholds.toml with ``[table] key = value`` for each item (replaced or added)."""
-    text = THRESHOLDS_PATH.read_text(encoding="utf-8")
+def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str,
+                     source: Path | None = None) -> Path:
+    """A copy of thresholds.toml (or of ``source``) with ``[table] key = value`` for each item (replaced or added)."""
+    text = (source or THRESHOLDS_PATH).read_text(encoding="utf-8")
     header = f"[{table}]"
     if header not in text:
         text += f"\n{header}\n"
@@ -453,6 +454,59 @@ def stays(engine: str = "whisper-score") -> str:
     return "\n".join(lines)
 
 
+# -- the weak-match guard -----------------------------------------------------------------------------
+#: candidate values of ``[transcript.whisper-score] min_shared``: 0 is no guard (shown, never chosen); 0.01 is the
+#: least the issue asks for (a transcript that shares no sound of the phrase does not act on it)
+GUARD_GRID = [0.0, 0.01, 0.1, 0.15, 0.2, 0.25, 0.3, 0.34, 0.4, 0.5]
+#: a stricter guard may cost at most this fraction of the English dev commands right beyond what 0.01 costs (none:
+#: a stricter value is taken only where it is free on real English speech)
+GUARD_COST = 0.0
+GUARD_TABLE = "transcript.whisper-score"
+
+
+def guard(write: bool, engine: str = "whisper-score") -> str:
+    """What the weak-match guard (min_shared) costs on real English speech, value by value, and which to ship.
+
+    The guard is required (issue 31: Spanish flew the wrong way on transcripts that shared almost no sound of the
+    phrase), so its least form, 0.01 (no sound shared), is always taken; a stricter value is chosen when it costs
+    at most :data:`GUARD_COST` (none) of the dev commands right more than that, over every condition (clean and each
+    noise) together. Test is shown beside it and never chooses."""
+    cache = load_cache(engine)
+    split = {s: load_recordings(split=s) for s in ("dev", "test")}
+    conditions = [c for c in CONDITIONS if any(_key(r, c) in cache for r in split["dev"])]
+    per: dict[float, dict[str, dict[str, Counts]]] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for value in GUARD_GRID:
+            matcher = get_matcher(MATCHER, thresholds_path=_with_thresholds(GUARD_TABLE, {"min_shared": value},
+                                                                            Path(tmp), str(value)))
+            per[value] = {s: {c: count(recs, c, cache, matcher) for c in conditions} for s, recs in split.items()}
+    right = {v: sum(c.right for c in per[v]["dev"].values()) for v in GUARD_GRID}
+    commands = sum(c.commands for c in per[0.0]["dev"].values())
+    least = GUARD_GRID[1]
+    chosen = max(v for v in GUARD_GRID[1:] if right[least] - right[v] <= GUARD_COST * commands)
+    lines = ["## The weak-match guard", "",
+             "What Whisper heard must have at least `min_shared` of the matched phrase's sounds in it, in order",
+             "(`[transcript.whisper-score] min_shared` in thresholds.toml). Each cell: commands right, wrong actions,",
+             "non-commands acted on, for each value of it (0 = no guard; 0.01 = no sound shared, the least issue 31 asks).",
+             f"Chosen: the strictest value that costs at most {GUARD_COST:.0%} of the dev commands right more than 0.01",
+             "(0 %: a stricter guard than no sound shared only where it costs no English dev command)",
+             f"({', '.join(conditions)} together: {commands} commands).",
+             "Command: `python -m tools.bench_real guard`.", "",
+             "| min_shared | split | " + " | ".join(conditions) + " |", "| --- | --- |" + " --- |" * len(conditions)]
+    for value in GUARD_GRID:
+        for s in ("dev", "test"):
+            cells = " | ".join(f"{c.right}/{c.commands}, {c.wrong} wrong, {c.others_acted}/{c.others}"
+                               for c in per[value][s].values())
+            mark = " (chosen)" if value == chosen and s == "dev" else ""
+            lines.append(f"| {value}{mark} | {s} | {cells} |")
+    lines += ["", f"chosen: [{GUARD_TABLE}] min_shared = {chosen}"]
+    if write:
+        THRESHOLDS_PATH.write_text(_with_thresholds(GUARD_TABLE, {"min_shared": chosen}, CACHE_DIR, "guard")
+                                   .read_text(encoding="utf-8"), encoding="utf-8")
+        lines.append(f"written to {THRESHOLDS_PATH.relative_to(REPO)}")
+    return "\n".join(lines)
+
+
 # -- report -------------------------------------------------------------------------------------------
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
@@ -485,7 +539,7 @@ def report(engines: list[str]) -> str:
                   " (the machine was loaded by other work; `python -m tools.bench_real timing` measures it idle).", "",
                   "Settings tried and not taken, on the dev split: [real_variants.md](real_variants.md).", ""]
         if engine in TUNED:
-            lines += [frontier(engine), ""]
+            lines += [frontier(engine), "", guard(False, engine), ""]
     return "\n".join(lines) + "\n"
 
 
@@ -714,6 +768,8 @@ def main(argv: list[str] | None = None) -> int:
     tun.add_argument("--write", action="store_true", help="write the chosen value into thresholds.toml")
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
+    grd = sub.add_parser("guard", help="what the weak-match guard costs on real English, and its value")
+    grd.add_argument("--write", action="store_true", help="write the chosen min_shared into thresholds.toml")
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
@@ -763,6 +819,9 @@ def main(argv: list[str] | None = None) -> int:
             appended = args.live or args.hogs  # the idle file timing starts the file; the others follow it
             with open(args.out, "a" if appended else "w", encoding="utf-8") as out:
                 out.write(("\n" if appended else "") + text)
+        return 0
+    if args.stage == "guard":
+        print(guard(args.write))
         return 0
     if args.stage == "stays":
         print(stays())

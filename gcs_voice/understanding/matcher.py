@@ -13,7 +13,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from rapidfuzz.distance import Levenshtein
+from rapidfuzz.distance import LCSseq, Levenshtein
 
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding.decision import Decision
@@ -121,7 +121,8 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = (_negation_reason(recognition, best) or self._transcript_reason(recognition, best)) if rejecting else ""
+        reason = (_negation_reason(recognition, best) or self._weak_match_reason(recognition, best)
+                  or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
@@ -222,7 +223,9 @@ class Matcher:
         if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.match_key.split()}
-        vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()}
+        # a negation word is judged by its own rule (_negation_reason): it refuses any class but a stop, and
+        # "Don't stop!" stops
+        vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()} | set(best.dictionary.negations)
         commands = {p.match_key: p.action for p in best.dictionary.phrases
                     if " " not in p.match_key and p.action != best.phrase.action}
         self.prepare([best.dictionary])
@@ -241,14 +244,41 @@ class Matcher:
             word = heard_words[i]
             alone = distance(word)
             joined = distance(word + heard_words[i + 1]) if i + 1 < len(heard_words) else 1.0
-            if joined <= limit and joined < alone:
-                i += 2  # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise")
+            # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise"): the pair
+            # sounds nearer a word of the class than either half; not a stray word before a word of the class
+            # ("Y la la izquierda" for "gire a la izquierda": "yla" is near "la", and "la" alone is nearer)
+            if joined <= limit and joined < alone and (joined < distance(heard_words[i + 1])):
+                i += 2
             elif alone <= limit:
                 i += 1
             else:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
         return ""
+
+    def _weak_match_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """What the engine itself heard must share the sounds of the phrase it is matched to (``min_shared``).
+
+        A score near that of the engine's own transcript (the margin) says the phrase is about as likely as
+        what was heard, not that it was said: one speaker's "adelante", heard "A" and "Ailan", came within the
+        margin and the class gap of "a la derecha" and flew right. A transcript that has less than
+        ``min_shared`` of the phrase's sounds in it, in order (:meth:`shared`), is not that phrase, however
+        near its score; nothing heard at all shares none.
+        """
+        limit = transcript_limits(recognition.engine, self.thresholds_path, recognition.lang).get("min_shared")
+        if limit is None or not recognition.hypotheses:
+            return ""
+        heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
+        self.prepare([best.dictionary])
+        shared = self.shared(heard, best.phrase.match_key, best.dictionary) if heard else 0.0
+        if shared >= limit:
+            return ""
+        return (f"not a command: heard '{recognition.transcript}', which has {shared:.0%} of the sounds of "
+                f"'{best.phrase.text}' (< {limit:.0%})")
+
+    def shared(self, heard: str, phrase: str, dictionary: Dictionary) -> float:
+        """The fraction of ``phrase`` found in ``heard``, in order (characters; the phonetic matcher: sounds)."""
+        return LCSseq.similarity(heard, phrase) / len(phrase) if phrase else 1.0
 
     def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
         """Normalised distance between two single words (characters; the phonetic matcher: sounds)."""

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
-from rapidfuzz.distance import Levenshtein
+from rapidfuzz.distance import LCSseq, Levenshtein
 
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.understanding.matcher import Matcher
@@ -81,6 +81,15 @@ class PhoneticMatcher(Matcher):
     def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
         voice = self.voice(dictionary)
         return phonetic_distance(phoneme_tokens(a, voice), phoneme_tokens(b, voice))
+
+    def shared(self, heard: str, phrase: str, dictionary: Dictionary) -> float:
+        """The fraction of the phrase's phonemes found in what was heard, in order, a similar sound counting
+        (same class: "esquirla" has i-s-k-ɾ-a of "izquierda"; "a" has 1 of the 9 sounds of "a la derecha")."""
+        voice = self.voice(dictionary)
+        wanted = phoneme_tokens(phrase, voice)
+        if not wanted:
+            return 1.0
+        return LCSseq.similarity(_encode(phoneme_tokens(heard, voice))[1], _encode(wanted)[1]) / len(wanted)
 
     def distance(self, heard: str, phrase: Phrase, dictionary: Dictionary) -> float:
         voice = self.voice(dictionary)
