@@ -691,6 +691,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
         finished = False
 
         def submit(self, request):
+            request.done.set()  # served at once, as the bridge does once it has sent the setpoint (a pause waits for it)
             return request
 
     stream_end_s: dict[float, float] = {}  # utterance end time -> where in the stream it ended (s)
