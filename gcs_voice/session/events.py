@@ -34,6 +34,8 @@ KINDS: dict[str, str] = {
     "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",
     "vehicle": "STATUSTEXT from the vehicle: severity, text",
     "collision": "the vehicle said it hit something (SIM Hit ...), not a landing: obstacle, speed_m_s, text",
+    "feedback": "a cue the pilot heard (--feedback): tone (doing|not_understood|refused|warning), words, played_t "
+                "(UNIX time it started), seconds, player",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }
