@@ -100,7 +100,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                             f"plays the microphone hears only stop words (default {DEFAULT_MODE})")
     heard.add_argument("--feedback-echo", type=_echo, metavar="DB:MS",
                        help="with --listen-wav: play the feedback into the recording DB decibels down and MS "
-                            "milliseconds late, as a speaker beside the microphone would (e.g. -6:60), instead of "
+                            "milliseconds late, as a speaker beside the microphone would (--feedback-echo=-6:60), instead of "
                             "out of the sound card")
     flight = parser.add_argument_group("flight")
     flight.add_argument("--takeoff", type=setting_type("takeoff_altitude_m"), metavar="M",
