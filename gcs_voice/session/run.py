@@ -249,10 +249,10 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
 
             bus.subscribe(HeadlessPrinter(as_json=config.as_json))
         bus.subscribe(watch)  # after the printers: a hit is printed after the vehicle's text that says it
-        feedback, gate, echo_room = _feedback(config, dictionaries, bus)
         bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
                  argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
                  engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
+        feedback, gate, echo_room = _feedback(config, dictionaries, bus)  # (its notices follow the start)
         link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said,
                            security=config.link_security)
         link.open()
