@@ -80,6 +80,11 @@ def test_each_event_has_the_cue_a_pilot_needs() -> None:
     waiting = cue_for(_event("ready", "waiting for: position (EKF)", waiting_for="position (EKF)"), en)
     assert waiting.words == "waiting to arm: position estimate"
     assert cue_for(_event("flight", what="take_off", ok=False), en).tone == "refused"
+    battery = cue_for(_event("vehicle", "vehicle: Battery 1 is low 10.92V used 8 mAh",
+                             text="Battery 1 is low 10.92V used 8 mAh"), en)
+    assert (battery.tone, battery.words) == ("warning", "battery low")
+    assert cue_for(_event("vehicle", text="Low battery level! Return advised"), es).words == "batería baja"
+    assert cue_for(_event("vehicle", text="EKF3 IMU0 is using GPS"), en) is None
     assert cue_for(_event("heard", text="go left"), en) is None
 
 

@@ -24,7 +24,7 @@ from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.audio.sources import AudioChunk
 from gcs_voice.errors import AudioError
 
-__all__ = ["Player", "EchoGate", "SpeakerPlayer", "EchoRoom", "open_speaker", "pcm_seconds"]
+__all__ = ["Player", "EchoGate", "SpeakerPlayer", "EchoRoom", "TimedSink", "open_speaker", "pcm_seconds"]
 
 
 def pcm_seconds(pcm: bytes) -> float:
@@ -87,6 +87,16 @@ def open_speaker(device: int | str | None = None) -> SpeakerPlayer:
     except Exception as exc:  # sounddevice raises PortAudioError / ValueError
         raise AudioError(f"no speaker: {str(exc).splitlines()[0]}") from None
     return SpeakerPlayer(device)
+
+
+class TimedSink:
+    """Plays nowhere, in real time: where there is no sound card (a benchmark), a cue is still rendered and
+    takes its length, so what feedback costs a session is measured, not skipped."""
+
+    name = "timed sink"
+
+    def play(self, pcm: bytes) -> None:
+        time.sleep(pcm_seconds(pcm))
 
 
 class EchoRoom:

@@ -3,9 +3,9 @@
 A pilot looks at the drone, not at a screen. After each decision the bridge plays one of three tones a
 pilot tells apart without looking (rising: doing it; one low: not understood; falling: refused), and with
 ``--feedback speech`` (the default of ``gcs-voice``) says what in the session's language: "going left",
-"refused, not armed". Warnings (link lost and restored, the vehicle's mode changed by something else,
-floor / ceiling / fence reached, waiting to arm and for what, a failed take-off) are three quick beeps and
-their words. What is said is data: ``gcs_voice/data/feedback/<lang>.toml``; the tones: ``sounds.toml``.
+"refused, not armed". Warnings (link lost and restored, the vehicle's mode changed, whoever changed it:
+a failsafe, another station; floor / ceiling / fence reached; waiting to arm and for what; the vehicle's
+low-battery warning; a failed take-off) are three quick beeps and their words. What is said is data: ``gcs_voice/data/feedback/<lang>.toml``; the tones: ``sounds.toml``.
 
 Cues are made from the session's events (``gcs_voice.session.events``), the same records the console
 prints, so the feedback says nothing the log does not. ``Feedback`` only queues in the emitter's thread;
@@ -118,8 +118,8 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     missing = [a for a in ACTIONS if a not in tables["actions"]]
     if missing:
         raise GcsVoiceError(f"{path}: [actions] has no phrase for {', '.join(missing)}")
-    needed = ("not_understood", "refused", "link_lost", "link_restored", "mode", "waiting", "take_off_failed",
-              "error", "collision")
+    needed = ("not_understood", "refused", "link_lost", "link_restored", "mode", "waiting", "battery",
+              "take_off_failed", "error", "collision")
     missing = [k for k in needed if k not in tables["said"]]
     if missing:
         raise GcsVoiceError(f"{path}: [said] has no phrase for {', '.join(missing)}")
@@ -173,6 +173,9 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
         if d.get("what") == "take_off" and d.get("ok") is False:
             return Cue("refused", said["take_off_failed"])
         return None
+    if event.kind == "vehicle" and "battery" in str(d.get("text", "")).lower():
+        # the autopilot's own low-battery warning (ArduPilot "Battery 1 is low ...", PX4 "Low battery level! ...")
+        return Cue("warning", said["battery"])
     if event.kind == "error":
         return Cue("warning", said["error"])
     if event.kind == "collision":

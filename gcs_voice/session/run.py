@@ -85,6 +85,9 @@ class SessionConfig:
     #: with ``listen_wav``: the feedback is played into the recording (gain in dB, delay in s), as a speaker
     #: beside the microphone would put it there, instead of out of the sound card
     feedback_echo: tuple[float, float] | None = None
+    #: where the feedback plays instead of the sound card (a gcs_voice.audio.speaker.Player: a benchmark's
+    #: TimedSink); the microphone is not gated for it
+    feedback_player: Player | None = None
 
 
 @dataclass
@@ -152,7 +155,9 @@ def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: Ev
                  source="feedback")
         languages = languages or {"en": load_phrases("en")}
     room = None
-    if config.feedback_echo is not None and config.listen_wav is not None:
+    if config.feedback_player is not None:
+        player = config.feedback_player
+    elif config.feedback_echo is not None and config.listen_wav is not None:
         gain_db, delay_s = config.feedback_echo
         room = EchoRoom(10 ** (gain_db / 20), delay_s)
         player: Player = room
@@ -164,7 +169,8 @@ def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: Ev
             return None, None, None
     # the microphone is deaf while the speaker plays; a recording (--listen-wav) hears the speaker only through
     # the echo room: played out of the sound card, the feedback cannot reach it, so there is nothing to gate
-    gate = EchoGate(sounds.tail_s) if room is not None or config.listen_wav is None else None
+    gate = (EchoGate(sounds.tail_s) if room is not None or (config.listen_wav is None and config.feedback_player is None)
+            else None)
     default = config.lang if config.lang in languages else next(iter(languages))
     feedback = Feedback(config.feedback, languages, default, player, gate or EchoGate(0.0), bus, sounds)
     bus.subscribe(feedback)
