@@ -20,10 +20,9 @@ ECHO_DELAY_MS = 60
 
 
 def _voiced_dbfs(x: np.ndarray) -> float:
-    frames = x[: x.size // 320 * 320].reshape(-1, 320)
-    energy = np.sqrt((frames ** 2).mean(axis=1))
-    voiced = frames[energy > energy.max() * 10 ** (-25 / 20)]
-    return float(20 * np.log10(np.sqrt(np.mean(voiced ** 2)) + 1e-9))
+    from tools.bench_stream import voiced_level
+
+    return float(20 * np.log10(voiced_level(x)[0] + 1e-9))
 
 
 def _decisions(result) -> tuple[list[tuple[str, str]], int]:

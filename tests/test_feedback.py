@@ -148,12 +148,10 @@ def _listen(recording: bytes, bridge_pcm: bytes, play_at_s: float, gate: EchoGat
 
 
 def _voiced_dbfs(pcm: bytes) -> float:
-    """Level of the voiced 20 ms frames (within 25 dB of the loudest): speech, not its pauses."""
-    x = np.frombuffer(pcm, "<i2").astype(np.float64) / 32768
-    frames = x[: x.size // 320 * 320].reshape(-1, 320)
-    energy = np.sqrt((frames ** 2).mean(axis=1))
-    voiced = frames[energy > energy.max() * 10 ** (-25 / 20)]
-    return float(20 * np.log10(np.sqrt(np.mean(voiced ** 2)) + 1e-9))
+    """Level of the voiced frames (tools.bench_stream.voiced_level): speech, not its pauses."""
+    from tools.bench_stream import voiced_level
+
+    return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0] + 1e-9))
 
 
 def _level_dbfs(pcm: bytes) -> float:

@@ -20,17 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
+from tools.bench_stream import voiced_level
 from tools.real_speech import SHARED, load_recordings
 
 RATE = 16_000
 
 
 def voiced_dbfs(x: np.ndarray) -> float:
-    """Level of the voiced 20 ms frames (within 25 dB of the loudest), in dBFS."""
-    frames = x[: x.size // 320 * 320].reshape(-1, 320) / 32768.0
-    energy = np.sqrt((frames ** 2).mean(axis=1))
-    voiced = frames[energy > energy.max() * 10 ** (-25 / 20)]
-    return float(20 * np.log10(np.sqrt(np.mean(voiced ** 2)) + 1e-12))
+    """Level of the voiced frames (tools.bench_stream.voiced_level), in dBFS, of int16-scaled samples."""
+    return float(20 * np.log10(voiced_level(x / 32768.0)[0] + 1e-12))
 
 
 def main(argv: list[str] | None = None) -> int:
