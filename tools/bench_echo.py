@@ -68,13 +68,14 @@ def main(argv: list[str] | None = None) -> int:
             hits += spotter.spot(np.clip(mix, -32768, 32767).astype("<i2").tobytes()).fired
         rows.append(f"| {level:+g} dB | {hits}/{len(alone)} |")
         print(rows[-1])
+    corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
     report = "\n".join([
         "# A stop said over the bridge's own voice",
         "",
         f"Command: `python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} "
         f"--stop-at {args.stop_at:g}" + (f" --out {args.out}" if args.out else "") + "`",
         "",
-        f"Corpus: the real \"stop\" recordings of the held-out test speakers of `{args.speech}` that the stop spotter "
+        f"Corpus: the real \"stop\" recordings of the held-out test speakers of `{corpus}` that the stop spotter "
         f"hears alone ({len(alone)} of {len(stops)}). Each is mixed with the bridge's cue for a decision (the doing "
         f"tone, then espeak-ng saying \"{words}\", {voice.size / RATE:.1f} s), the stop starting {args.stop_at:g} s "
         f"into it, the cue {args.delay_ms:g} ms late, at a level of its voiced parts relative to the stop's; the "
@@ -86,6 +87,8 @@ def main(argv: list[str] | None = None) -> int:
         *rows,
         "",
         "The bridge does not subtract what it plays (no echo canceller yet): the spotter hears the raw microphone.",
+        "While the bridge speaks the segmenter is deaf, so a stop the spotter misses then is not heard at all (the",
+        "main recogniser does not get it): the pilot says it again after the cue.",
         "",
     ])
     print(report)

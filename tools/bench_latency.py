@@ -147,7 +147,7 @@ def _response_ms(flight, sent_t: float, want: tuple, yaw_deg: float, action: str
 
 
 def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], work: Path,
-               feedback: str = "off") -> tuple[list[dict], int]:
+               feedback: str = "off", run: int = 0) -> tuple[list[dict], int]:
     """One session; with ``feedback`` speech or tones every cue is rendered and played in real time into a
     TimedSink (no sound card here), in the session's feedback thread as a pilot's speaker would be."""
     from gcs_voice.audio.speaker import TimedSink
@@ -156,10 +156,10 @@ def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], wo
 
     voice = load_voice("en", engine, model, None)
     script = [ScriptStep(p, GAP_S) for p, _ in items]
-    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}-{feedback}.log") as sim:
+    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}-{feedback}-{run}.log") as sim:
         result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
                                            headless=True, quiet=True, log_dir=work,
-                                           log_name=f"bench-{engine}-{feedback}", feedback=feedback,
+                                           log_name=f"bench-{engine}-{feedback}-{run}", feedback=feedback,
                                            feedback_player=TimedSink() if feedback != "off" else None),
                              voice=voice)
     said = [e for e in result.events if e["kind"] == "feedback"]
@@ -176,6 +176,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--corpus", type=Path, help="tools/make_corpus.py output folder (default: espeak-ng here)")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     parser.add_argument("--keep", type=Path, help="keep tlogs and session logs in this folder")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="fly every engine and mode this many times, interleaved (the spread between runs of the "
+                             "same mode is the machine's, not the code's)")
     parser.add_argument("--feedback", default="off",
                         help="comma-separated --feedback modes to fly each engine with (speech, tones, off; default "
                              "off): one row per engine and mode")
@@ -190,14 +193,15 @@ def main(argv: list[str] | None = None) -> int:
     rows = []
     best: tuple[float, str, str] | None = None  # (b) p95, engine, load
     modes = [m.strip() for m in args.feedback.split(",") if m.strip()]
-    runs = [(e.strip(), m) for e in args.engines.split(",") if e.strip() for m in modes]
-    for engine, mode in runs:
+    runs = [(e.strip(), m, i) for i in range(args.repeat) for e in args.engines.split(",") if e.strip() for m in modes]
+    for engine, mode, run in runs:
         model = args.whisper_model if engine == "whisper" else None
-        label = engine if modes == ["off"] else f"{engine}, feedback {mode}"
+        label = (engine if modes == ["off"] else f"{engine}, feedback {mode}") + (f" (run {run + 1})" if args.repeat > 1
+                                                                                  else "")
         try:
             started = time.monotonic()
             with CpuSample() as cpu:
-                timed, total = fly_engine(engine, model, items, work, mode)
+                timed, total = fly_engine(engine, model, items, work, mode, run)
         except GcsVoiceError as exc:
             print(f"{label}: skipped ({exc})")
             rows.append(f"| {label} | skipped: {exc} | | | | | | | | | | |")
@@ -218,6 +222,7 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "Command: `nice -n 10 python -m tools.bench_latency --engines " + args.engines
         + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --feedback {args.feedback}" if modes != ["off"] else "")
+        + (f" --repeat {args.repeat}" if args.repeat > 1 else "")
         + (f" --out {args.out}" if args.out else "") + "`",
         "",
         f"Corpus: {corpus_note}; fed at speaking pace, one every {GAP_S:g} s, after `--takeoff 1.5`.",

@@ -61,8 +61,9 @@ class Speech:
         if cached is not None:
             return cached
         try:
+            # close_fds=False lets Python spawn it with posix_spawn (no fork of a process holding a Whisper model)
             done = subprocess.run([self.exe, "-v", self.voice, "-s", str(self.speed_wpm), "--stdout", text],
-                                  capture_output=True, timeout=10.0, check=False)
+                                  capture_output=True, timeout=10.0, check=False, close_fds=False)
         except (OSError, subprocess.TimeoutExpired) as exc:
             raise AudioError(f"espeak-ng failed: {exc}") from None
         if done.returncode != 0 or not done.stdout:

@@ -258,13 +258,16 @@ class Feedback:
         self._thread.join(timeout_s)
 
     def _warm(self) -> None:
-        """Render every decision's words now (espeak-ng, ~30 ms a phrase), so none waits for it in flight."""
+        """Render every decision's and fixed warning's words now (espeak-ng, ~30 ms a phrase), so none waits for
+        it in flight (a mode's name or a wait's reason is rendered once, when first said)."""
         from gcs_voice.errors import AudioError
 
         for lang, speech in list(self.speech.items()):
             p = self.languages[lang]
             try:
-                for words in (*p.actions.values(), p.said["refused"], *p.reasons.values()):
+                refusals = [f"{p.said['refused']}, {why}" for why in p.reasons.values()]
+                for words in (*p.actions.values(), *refusals, *p.reasons.values(), p.said["link_lost"],
+                              p.said["link_restored"], p.said["battery"]):
                     speech.say(words)
             except AudioError as exc:
                 self.bus.emit("warning", f"feedback: {exc}; tones only", source="feedback")
