@@ -44,6 +44,8 @@ DEFAULT_MODE = "speech"
 TONES = ("doing", "not_understood", "refused", "warning")
 #: a wait-to-arm reason said again only after this long (the readiness check repeats it every few seconds)
 WAITING_REPEAT_S = 15.0
+#: a stop the spotter fired is not said when the same cue was queued less than this before (see __call__)
+SPOTTER_REPEAT_S = 5.0
 #: a decision or a wait-to-arm said later than this after it happened is no longer news
 STALE_S = 2.5
 #: the events' shapes this module reads (gcs_voice.session.bridge): "vehicle is in BRAKE, not GUIDED: ..."
@@ -74,12 +76,17 @@ class Phrases:
     said: dict[str, str]
     reasons: dict[str, str]
     waiting: dict[str, str]
+    #: mode names said otherwise (a mode called like a stop word: PX4's HOLD)
+    modes: dict[str, str]
+
+    def mode(self, name: str) -> str:
+        return self.said["mode"].format(mode=self.modes.get(name.upper(), name))
 
     def reason(self, text: str) -> str:
         """The words for a refusal's or a limit's reason: the vehicle's other mode, else the first match."""
         other = _OTHER_MODE.search(text)
         if other:
-            return self.said["mode"].format(mode=other.group(1))
+            return self.mode(other.group(1))
         low = text.lower()
         return next((words for key, words in self.reasons.items() if key.lower() in low), "")
 
@@ -110,8 +117,8 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     path = folder / f"{language}.toml"
     data = _load(path)
     tables = {}
-    for name in ("actions", "said", "reasons", "waiting"):
-        table = data.get(name)
+    for name in ("actions", "said", "reasons", "waiting", "modes"):
+        table = data.get(name, {} if name == "modes" else None)
         if not isinstance(table, dict) or not all(isinstance(v, str) for v in table.values()):
             raise GcsVoiceError(f"{path}: [{name}] must be a table of strings")
         tables[name] = dict(table)
@@ -156,7 +163,7 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
         return Cue("warning", said["link_lost" if d["state"] == "lost" else "link_restored"])
     if event.kind == "warning" and d.get("source") == "link" and event.msg.startswith("vehicle now "):
         # "vehicle now RTL, armed" (gcs_voice.link.channel: a mode or arming change, whoever made it)
-        return Cue("warning", said["mode"].format(mode=event.msg.removeprefix("vehicle now ").split(",")[0]))
+        return Cue("warning", phrases.mode(event.msg.removeprefix("vehicle now ").split(",")[0]))
     if event.kind == "warning" and d.get("source") == "mapper":  # "go_left -> stop: floor 0.5 m reached"
         reason = phrases.reason(event.msg.split(": ", 1)[-1])
         if not reason or "link lost" in event.msg:  # a lost link is said by its own event
@@ -169,7 +176,7 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
         return Cue("warning", said["waiting"].format(what=what[0]), stale_s=STALE_S) if what else None
     if event.kind == "flight":
         if d.get("what") == "mode" and d.get("mode"):  # the vehicle's mode changed, not by us
-            return Cue("warning", said["mode"].format(mode=d["mode"]))
+            return Cue("warning", phrases.mode(str(d["mode"])))
         if d.get("what") == "take_off" and d.get("ok") is False:
             return Cue("refused", said["take_off_failed"])
         return None
@@ -221,6 +228,7 @@ class Feedback:
         self._closed = False
         self._last_waiting: tuple[str, float] = ("", 0.0)
         self._last_mode = ""
+        self._last_said: tuple[str, str, float] = ("", "", 0.0)  # tone, words, when queued
         #: cues played, as (UNIX time started, cue, seconds): for the log and the tests
         self.played: list[tuple[float, Cue, float]] = []
         self._warm()  # before the session flies: the first cue is as quick as any
@@ -238,12 +246,18 @@ class Feedback:
             if cue.words == self._last_mode:
                 return
             self._last_mode = cue.words
+        if event.data.get("origin") == "spotter":
+            # a stop the spotter fired is not said again if it says what was just said: the spotter hears the
+            # bridge's own voice, and a cue it took for a stop must not start a loop of stops and cues
+            if (cue.tone, cue.words) == self._last_said[:2] and event.t - self._last_said[2] < SPOTTER_REPEAT_S:
+                return
         if event.kind == "ready":
             last, at = self._last_waiting
             if cue.words == last and event.t - at < WAITING_REPEAT_S:
                 return
             self._last_waiting = (cue.words, event.t)
         cue = replace(cue, queued_t=time.time())
+        self._last_said = (cue.tone, cue.words, event.t)
         with self._ready:
             if cue.decision:
                 self._queue = deque(c for c in self._queue if not c.decision)
