@@ -238,3 +238,21 @@ def test_no_english_cue_is_heard_as_a_stop_by_the_english_stop_spotter() -> None
         if hit.fired:
             heard.append((name, words, hit.word))
     assert not heard, heard
+
+
+def test_a_spotter_stop_that_repeats_the_last_cue_is_not_said_again() -> None:
+    """The spotter may take the bridge's own "braking" for a stop: saying "braking" again would loop."""
+    from gcs_voice.audio.speaker import TimedSink
+    from gcs_voice.session.events import EventBus
+    from gcs_voice.session.feedback import Feedback
+
+    bus = EventBus()
+    feedback = Feedback("tones", {"en": load_phrases("en")}, "en", TimedSink(), EchoGate(0.0), bus)
+    bus.subscribe(feedback)
+    playing = threading.Event()
+    bus.subscribe(lambda e: playing.set() if e.kind == "feedback" else None)
+    bus.emit("command", "'hold' -> stop", action="stop", origin="voice")
+    assert playing.wait(10.0)  # the first "braking" is playing: a second one would be queued after it
+    bus.emit("command", "stop (spotter)", action="stop", origin="spotter")  # heard in the bridge's own cue
+    feedback.close()  # plays what is queued
+    assert [(c.tone, c.words) for _t, c, _s in feedback.played] == [("doing", "braking")]
