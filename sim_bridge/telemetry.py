@@ -22,8 +22,6 @@ M = mavlink
 SENSORS = (M.MAV_SYS_STATUS_SENSOR_3D_GYRO | M.MAV_SYS_STATUS_SENSOR_3D_ACCEL | M.MAV_SYS_STATUS_SENSOR_3D_MAG
            | M.MAV_SYS_STATUS_SENSOR_ABSOLUTE_PRESSURE | M.MAV_SYS_STATUS_SENSOR_GPS
            | M.MAV_SYS_STATUS_SENSOR_MOTOR_OUTPUTS | M.MAV_SYS_STATUS_AHRS | M.MAV_SYS_STATUS_SENSOR_BATTERY)
-BATTERY_MV = 12600
-BATTERY_REMAINING_PCT = 96
 
 
 def message_id(name: str) -> int:
@@ -51,8 +49,9 @@ def _sys_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
     present = SENSORS | prearm | (fence if fence_present else 0)
     enabled = SENSORS | prearm | (fence if fence_enabled else 0)
     health = SENSORS | (M.MAV_SYS_STATUS_PREARM_CHECK if ap.armable() else 0) | (fence if fence_healthy else 0)
-    return mav.sys_status_encode(present, enabled, health, 200, BATTERY_MV, 0, BATTERY_REMAINING_PCT,
-                                 0, 0, 0, 0, 0, 0)
+    capacity = ap.battery_capacity_mah()
+    return mav.sys_status_encode(present, enabled, health, 200, ap.battery.voltage_mv(capacity),
+                                 _int16(ap.battery.current_a * 100), ap.battery_remaining_pct(), 0, 0, 0, 0, 0, 0)
 
 
 def _attitude(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
@@ -133,9 +132,12 @@ def _system_time(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
 
 
 def _battery_status(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:
-    cells = [4200, 4200, 4200] + [65535] * 7
+    capacity = ap.battery_capacity_mah()
+    battery = ap.battery
+    cells = [battery.cell_mv(capacity)] * battery.spec.cells + [65535] * (10 - battery.spec.cells)
     return mav.battery_status_encode(0, M.MAV_BATTERY_FUNCTION_UNKNOWN, M.MAV_BATTERY_TYPE_LIPO, 32767, cells,
-                                     -1, -1, -1, BATTERY_REMAINING_PCT)
+                                     _int16(battery.current_a * 100), int(battery.consumed_mah), -1,
+                                     ap.battery_remaining_pct())
 
 
 def _ekf_status_report(ap: "Autopilot", mav: M.MAVLink) -> M.MAVLink_message:

@@ -146,16 +146,25 @@ def _response_ms(flight, sent_t: float, want: tuple, yaw_deg: float, action: str
     return None
 
 
-def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], work: Path) -> tuple[list[dict], int]:
+def fly_engine(engine: str, model: str | None, items: list[tuple[Path, str]], work: Path,
+               feedback: str = "off", run: int = 0) -> tuple[list[dict], int]:
+    """One session; with ``feedback`` speech or tones every cue is rendered and played in real time into a
+    TimedSink (no sound card here), in the session's feedback thread as a pilot's speaker would be."""
+    from gcs_voice.audio.speaker import TimedSink
     from gcs_voice.session.run import SessionConfig, load_voice, run_session
     from gcs_voice.session.sim_process import BundledSim
 
     voice = load_voice("en", engine, model, None)
     script = [ScriptStep(p, GAP_S) for p, _ in items]
-    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}.log") as sim:
+    with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"sim-{engine}-{feedback}-{run}.log") as sim:
         result = run_session(SessionConfig(connection=sim.connection, lang="en", script=script, takeoff_m=1.5,
                                            headless=True, quiet=True, log_dir=work,
-                                           log_name=f"bench-{engine}"), voice=voice)
+                                           log_name=f"bench-{engine}-{feedback}-{run}", feedback=feedback,
+                                           feedback_player=TimedSink() if feedback != "off" else None),
+                             voice=voice)
+    said = [e for e in result.events if e["kind"] == "feedback"]
+    if feedback != "off" and not said:
+        raise GcsVoiceError(f"--feedback {feedback}: nothing was played ({[e['msg'] for e in result.events][-5:]})")
     heard = [e for e in result.events if e["kind"] == "heard"]
     return measure(result.jsonl, result.tlog, {p.name: a for p, a in items}), len(heard)
 
@@ -167,6 +176,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--corpus", type=Path, help="tools/make_corpus.py output folder (default: espeak-ng here)")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     parser.add_argument("--keep", type=Path, help="keep tlogs and session logs in this folder")
+    parser.add_argument("--repeat", type=int, default=1,
+                        help="fly every engine and mode this many times, interleaved (the spread between runs of the "
+                             "same mode is the machine's, not the code's)")
+    parser.add_argument("--feedback", default="off",
+                        help="comma-separated --feedback modes to fly each engine with (speech, tones, off; default "
+                             "off): one row per engine and mode")
     args = parser.parse_args(argv)
 
     work = args.keep or Path(tempfile.mkdtemp(prefix="bench-latency-"))
@@ -177,32 +192,38 @@ def main(argv: list[str] | None = None) -> int:
                    "in tools/bench_latency.py SEQUENCE)")
     rows = []
     best: tuple[float, str, str] | None = None  # (b) p95, engine, load
-    for engine in [e.strip() for e in args.engines.split(",") if e.strip()]:
+    modes = [m.strip() for m in args.feedback.split(",") if m.strip()]
+    runs = [(e.strip(), m, i) for i in range(args.repeat) for e in args.engines.split(",") if e.strip() for m in modes]
+    for engine, mode, run in runs:
         model = args.whisper_model if engine == "whisper" else None
+        label = (engine if modes == ["off"] else f"{engine}, feedback {mode}") + (f" (run {run + 1})" if args.repeat > 1
+                                                                                  else "")
         try:
             started = time.monotonic()
             with CpuSample() as cpu:
-                timed, total = fly_engine(engine, model, items, work)
+                timed, total = fly_engine(engine, model, items, work, mode, run)
         except GcsVoiceError as exc:
-            print(f"{engine}: skipped ({exc})")
-            rows.append(f"| {engine} | skipped: {exc} | | | | | | | | | | |")
+            print(f"{label}: skipped ({exc})")
+            rows.append(f"| {label} | skipped: {exc} | | | | | | | | | | |")
             continue
         a = [r["a_ms"] for r in timed]
         b = [r["b_ms"] for r in timed if r["b_ms"] is not None]
         c = [r["c_ms"] for r in timed if r["c_ms"] is not None]
         load = _load()
-        line = (f"| {engine} | {len(timed)}/{len(items)} | {percentile(a, .5):.0f} | {percentile(a, .95):.0f} | "
+        line = (f"| {label} | {len(timed)}/{len(items)} | {percentile(a, .5):.0f} | {percentile(a, .95):.0f} | "
                 f"{percentile(b, .5):.0f} | {percentile(b, .95):.0f} | {percentile([y - x for x, y in zip(a, b)], .95):.1f} | "
                 f"{len(c)} | {percentile(c, .5):.0f} | {percentile(c, .95):.0f} | {load} | {_stolen(cpu)} |")
         rows.append(line)
         print(line, f"({time.monotonic() - started:.0f} s)")
         if b and (best is None or percentile(b, .95) < best[0]):
-            best = (percentile(b, .95), engine, load)
+            best = (percentile(b, .95), label, load)
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
         "Command: `nice -n 10 python -m tools.bench_latency --engines " + args.engines
-        + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --out {args.out}" if args.out else "") + "`",
+        + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --feedback {args.feedback}" if modes != ["off"] else "")
+        + (f" --repeat {args.repeat}" if args.repeat > 1 else "")
+        + (f" --out {args.out}" if args.out else "") + "`",
         "",
         f"Corpus: {corpus_note}; fed at speaking pace, one every {GAP_S:g} s, after `--takeoff 1.5`.",
         "Vehicle: bundled simulator (`python -m sim_bridge.cli --autopilot ardupilot --room open_field`), real time,",
@@ -213,6 +234,9 @@ def main(argv: list[str] | None = None) -> int:
         "Only utterances decided as the intended action are timed (timed/total). Milliseconds. (b)-(a): time",
         "from the decision to the setpoint on the wire. load: 1-minute load average of the machine after the run;",
         "stolen: the share of the busy CPU time the hypervisor took during the run (tools/cpu_steal.py).",
+        *(["`feedback speech|tones`: every decision's cue (tone, and espeak-ng's words) rendered and played in real "
+           "time in the session's feedback thread, into a sink that takes the sound's length (no sound card here)."]
+          if modes != ["off"] else []),
         "",
         "| engine | timed | (a) p50 | (a) p95 | (b) p50 | (b) p95 | (b)-(a) p95 | (c) n | (c) p50 | (c) p95 | load | stolen |",
         "| --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- | --- |",

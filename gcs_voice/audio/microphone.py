@@ -4,6 +4,11 @@ Push-to-talk (``--push-to-talk``) gates the same stream: while the talk key is n
 segmenter is fed silence, so closing it ends the utterance at once and nothing said outside it counts.
 Each utterance comes with the wall-clock time its speech ended (the segmenter's end, not the moment
 its hangover ran out), which is where latency is counted from.
+
+The bridge never hears itself (``deaf``, an ``gcs_voice.audio.speaker.EchoGate``): while its own sound may
+be in the microphone, the segmenter is fed silence, so that sound never becomes an utterance, and the
+speech listener (the stop spotter) is fed the microphone itself, so a "stop" said over the bridge's voice
+still stops. That listener hears one stream at a time: the segmenter's speech, or the deaf time's audio.
 """
 
 from __future__ import annotations
@@ -38,27 +43,47 @@ def check_microphone(device: int | str | None = None) -> str:
 def microphone_utterances(talk: threading.Event | None = None, device: int | str | None = None,
                           on_speech: Callable[[bytes | None], None] | None = None,
                           on_tentative: Callable[[bytes], None] | None = None,
-                          chunks: Iterable[AudioChunk] | None = None) -> Iterator[tuple[bytes, float]]:
+                          chunks: Iterable[AudioChunk] | None = None,
+                          deaf: Callable[[float, float], bool] | None = None) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
     ``on_speech`` hears each utterance's audio while it is spoken; ``on_tentative`` gets an utterance's
     PCM as soon as it is final if no speech follows (see ``segment_utterances``). ``chunks`` replaces the
     microphone (``gcs_voice.audio.sources.paced_chunks``: a recording heard as if spoken now).
+    ``deaf(from_t, to_t)`` says whether audio captured then (UNIX times) may be the bridge's own sound.
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
 
     t0: list[float] = []
+    #: captured (UNIX time of its first sample) = captured_t0 + chunk.start_s; a chunk arrives once captured
+    captured_t0: list[float] = []
+    deaf_now = [False]
 
     def gated() -> Iterator[AudioChunk]:
         for chunk in (microphone_chunks(device) if chunks is None else chunks):
             if not t0:
                 t0.append(time.time() - chunk.start_s)
+                captured_t0.append(time.time() - chunk.start_s - chunk.duration_s)
             if talk is not None and not talk.is_set():
                 chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
+            elif deaf is not None:
+                start_t = captured_t0[0] + chunk.start_s
+                was, deaf_now[0] = deaf_now[0], deaf(start_t, start_t + chunk.duration_s)
+                if was and not deaf_now[0] and on_speech is not None:
+                    on_speech(None)  # the deaf time's audio ends: the listener decides on it
+                if deaf_now[0]:
+                    if on_speech is not None:
+                        on_speech(chunk.pcm)
+                    chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 
+    def segmenter_speech(pcm: bytes | None) -> None:
+        if not deaf_now[0]:  # while deaf the listener has the microphone's own audio instead
+            on_speech(pcm)
+
+    listen = on_speech if deaf is None or on_speech is None else segmenter_speech
     tentative = (lambda utt: on_tentative(utt.pcm)) if on_tentative is not None else None
-    for utterance in segment_utterances(gated(), on_speech=on_speech, on_tentative=tentative):
+    for utterance in segment_utterances(gated(), on_speech=listen, on_tentative=tentative):
         yield utterance.pcm, t0[0] + utterance.end_s

@@ -28,6 +28,19 @@ def _seconds(positive: bool):
     return parse
 
 
+def _echo(text: str) -> tuple[float, float]:
+    """An argparse ``type``: DB:MS -> (gain in dB, delay in seconds)."""
+    import math
+
+    try:
+        db, ms = (float(part) for part in text.split(":"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r}: DB:MS, e.g. -6:60 (6 dB down, 60 ms late)") from None
+    if not (math.isfinite(db) and math.isfinite(ms)) or db > 20 or not 0 <= ms <= 2000:
+        raise argparse.ArgumentTypeError(f"{text!r}: gain at most +20 dB, delay 0 to 2000 ms")
+    return db, ms / 1000.0
+
+
 def _stem(text: str) -> str:
     """An argparse ``type``: a file name stem for the logs (the folder is --log-dir)."""
     if not text.strip() or text.startswith(".") or any(sep in text for sep in ("/", "\\")):
@@ -78,6 +91,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     voice.add_argument("--hold", type=_seconds(positive=False), default=3.0, metavar="S",
                        help="with --say or --listen-wav: seconds the last action runs before the session ends, stopped "
                             "(default 3)")
+    from gcs_voice.session.feedback import DEFAULT_MODE, MODES
+
+    heard = parser.add_argument_group("what the pilot hears")
+    heard.add_argument("--feedback", choices=MODES, default=DEFAULT_MODE,
+                       help="after each decision and warning: a tone and the words (speech), the tone alone (tones: "
+                            "rising = doing it, low = not understood, falling = refused), or nothing (off). While it "
+                            f"plays the microphone hears only stop words (default {DEFAULT_MODE})")
+    heard.add_argument("--feedback-echo", type=_echo, metavar="DB:MS",
+                       help="with --listen-wav: play the feedback into the recording DB decibels down and MS "
+                            "milliseconds late, as a speaker beside the microphone would (--feedback-echo=-6:60), instead of "
+                            "out of the sound card")
     flight = parser.add_argument_group("flight")
     flight.add_argument("--takeoff", type=setting_type("takeoff_altitude_m"), metavar="M",
                         help="arm and take off to M metres as soon as the vehicle reports it can"
@@ -102,6 +126,8 @@ def run(args: argparse.Namespace) -> int:
 
     if args.json and not args.headless:
         args.headless = True
+    if args.feedback_echo is not None and args.listen_wav is None:
+        raise GcsVoiceError("--feedback-echo plays the feedback into a --listen-wav recording: give --listen-wav")
     overrides, names = setting_overrides(args), setting_flag_names()
     if args.takeoff is not None:  # --takeoff M is the take-off height too
         if overrides.get("takeoff_altitude_m") not in (None, args.takeoff):
@@ -117,7 +143,8 @@ def run(args: argparse.Namespace) -> int:
         as_json=args.json, log_dir=args.log_dir, log_name=args.log_name, wait_vehicle_s=args.wait,
         setting_overrides=overrides, setting_names=names, link_security=security_from_args(args),
         stop_spotter=not args.no_stop_spotter,
-        pause_while_deciding=not args.no_pause, listen_wav=args.listen_wav,
+        pause_while_deciding=not args.no_pause, listen_wav=args.listen_wav, feedback=args.feedback,
+        feedback_echo=args.feedback_echo,
     )
     return run_session(config).exit_code
 

@@ -38,6 +38,8 @@ KINDS: dict[str, str] = {
                 "failsafe); the voice motion and the setpoint stream stopped: mode, previous, by (station when the "
                 "ACK of another station's mode change was heard, else unknown), station ([system, component] or "
                 "null); voice motions are refused until the vehicle is back in the velocity mode",
+    "feedback": "a cue the pilot heard (--feedback): tone (doing|not_understood|refused|warning), words, played_t "
+                "(UNIX time it started), seconds, player",
     "warning": "something the pilot should know that is not a refusal",
     "error": "the voice side or the link failed; the vehicle was stopped",
 }

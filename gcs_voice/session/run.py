@@ -23,6 +23,8 @@ from gcs_voice.session.listen import (ScriptStep, TentativeUtterances, VoicePipe
 from gcs_voice.session.session_log import SessionLog, session_paths
 
 if TYPE_CHECKING:  # annotations only: the engines and matchers load when a session picks them
+    from gcs_voice.audio.speaker import EchoGate, EchoRoom, Player
+    from gcs_voice.session.feedback import Feedback
     from gcs_voice.asr.base import Recognizer
     from gcs_voice.asr.stop_spotter import StopSpotter
     from gcs_voice.domain.dictionary import Dictionary
@@ -77,6 +79,15 @@ class SessionConfig:
     stop_spotter: bool = True
     #: hold a moving vehicle from the end of each utterance to its decision; resume after speech not understood
     pause_while_deciding: bool = True
+    #: what the pilot hears after each decision and warning: speech | tones | off (gcs_voice.session.feedback;
+    #: off here, so a library caller or a test hears nothing unasked; ``gcs-voice`` defaults to speech)
+    feedback: str = "off"
+    #: with ``listen_wav``: the feedback is played into the recording (gain in dB, delay in s), as a speaker
+    #: beside the microphone would put it there, instead of out of the sound card
+    feedback_echo: tuple[float, float] | None = None
+    #: where the feedback plays instead of the sound card (a gcs_voice.audio.speaker.Player: a benchmark's
+    #: TimedSink); the microphone is not gated for it
+    feedback_player: Player | None = None
 
 
 @dataclass
@@ -124,6 +135,46 @@ def _script(config: SessionConfig) -> list[ScriptStep]:
         return list(config.script)
     paths = list(config.say)
     return [ScriptStep(p, config.gap_s if i < len(paths) - 1 else config.hold_s) for i, p in enumerate(paths)]
+
+
+def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: EventBus
+              ) -> tuple[Feedback | None, EchoGate | None, EchoRoom | None]:
+    """The session's feedback (subscribed to the bus), the gate that keeps the microphone deaf to it, and the
+    echo room it plays into (``feedback_echo``); Nones when off, or (said once) when there is no speaker."""
+    if config.feedback == "off":
+        return None, None, None
+    from gcs_voice.audio.speaker import EchoGate, EchoRoom, open_speaker
+    from gcs_voice.session.feedback import FEEDBACK_DIR, Feedback, load_phrases, load_sound_settings
+
+    sounds = load_sound_settings()
+    spoken = sorted({d.language for d in dictionaries})
+    languages = {lang: load_phrases(lang) for lang in spoken if (FEEDBACK_DIR / f"{lang}.toml").is_file()}
+    if len(languages) < len(spoken):
+        bus.emit("warning", f"feedback: no phrases for {', '.join(l for l in spoken if l not in languages)} "
+                 f"(gcs_voice/data/feedback/): {'English' if not languages else ', '.join(languages)} instead",
+                 source="feedback")
+        languages = languages or {"en": load_phrases("en")}
+    room = None
+    if config.feedback_player is not None:
+        player = config.feedback_player
+    elif config.feedback_echo is not None and config.listen_wav is not None:
+        gain_db, delay_s = config.feedback_echo
+        room = EchoRoom(10 ** (gain_db / 20), delay_s)
+        player: Player = room
+    else:
+        try:
+            player = open_speaker()
+        except GcsVoiceError as exc:
+            bus.emit("warning", f"feedback off: {exc}; decisions are shown, not heard", source="feedback")
+            return None, None, None
+    # the microphone is deaf while the speaker plays; a recording (--listen-wav) hears the speaker only through
+    # the echo room: played out of the sound card, the feedback cannot reach it, so there is nothing to gate
+    gate = (EchoGate(sounds.tail_s) if room is not None or (config.listen_wav is None and config.feedback_player is None)
+            else None)
+    default = config.lang if config.lang in languages else next(iter(languages))
+    feedback = Feedback(config.feedback, languages, default, player, gate or EchoGate(0.0), bus, sounds)
+    bus.subscribe(feedback)
+    return feedback, gate, room
 
 
 class _Terminated(KeyboardInterrupt):
@@ -180,6 +231,7 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
     bus = EventBus()
     link = None
     view = None
+    feedback = None
     watch = CollisionWatch(bus, settings.hard_landing_m_s, mode=lambda: link.state.mode if link else None)
     exit_code = 1
     error: str | None = None
@@ -206,6 +258,7 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
         bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
                  argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
                  engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
+        feedback, gate, echo_room = _feedback(config, dictionaries, bus)  # (its notices follow the start)
         link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said,
                            security=config.link_security)
         link.open()
@@ -243,7 +296,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
             if listen_pcm is None:
                 start_voice_thread(bridge, run_microphone, pipeline, bridge,
                                    microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
-                                                         on_tentative=tentatives),
+                                                         on_tentative=tentatives,
+                                                         deaf=gate.deaf if gate is not None else None),
                                    stop_path is not None, tentatives)
             else:
                 from gcs_voice.audio.sources import AudioChunk, paced_chunks
@@ -252,13 +306,19 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                     """The recording from when the vehicle is ready, at the pace it was spoken."""
                     if ready is not None and not ready.wait(link.ready_timeout_s + settings.takeoff_timeout_s + 30.0):
                         raise GcsVoiceError("the vehicle did not become ready in time to hear the recording")
-                    yield from paced_chunks(listen_pcm, on_start=lambda t0: bus.emit(
-                        "session", f"listening to {config.listen_wav.name} as a microphone", phase="listening",
-                        source=config.listen_wav.name, audio_t0=t0))
+                    def started(t0: float) -> None:
+                        if echo_room is not None:
+                            echo_room.start(t0)
+                        bus.emit("session", f"listening to {config.listen_wav.name} as a microphone",
+                                 phase="listening", source=config.listen_wav.name, audio_t0=t0)
+
+                    played = paced_chunks(listen_pcm, on_start=started)
+                    yield from (echo_room.hear(played) if echo_room is not None else played)
 
                 start_voice_thread(bridge, run_recording, pipeline, bridge,
                                    microphone_utterances(on_speech=on_speech, on_tentative=tentatives,
-                                                         chunks=recording()),
+                                                         chunks=recording(),
+                                                         deaf=gate.deaf if gate is not None else None),
                                    stop_path is not None, tentatives, config.hold_s)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
@@ -278,6 +338,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
     finally:
         if view is not None:
             view.stop()
+        if feedback is not None:
+            feedback.close()
         if link is not None:
             link.close()
         heard = link is not None and link.state.heartbeats > 0

@@ -38,6 +38,7 @@ TAKEOFF_CLIMB_M_S = 1.25
 
 class ArduCopter(Autopilot):
     name = "ardupilot"
+    battery_capacity_param = "BATT_CAPACITY"
     mav_autopilot = mavlink.MAV_AUTOPILOT_ARDUPILOTMEGA
     frame_rules = FrameRules(
         frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_LOCAL_OFFSET_NED,

@@ -15,6 +15,7 @@ from typing import Any, Protocol
 from pymavlink.dialects.v20 import ardupilotmega as mavlink
 
 from sim_bridge.autopilot.boot import ColdBoot
+from sim_bridge.battery import Battery
 from sim_bridge.params import ParamStore
 from sim_bridge.setpoints import FrameRules, SetpointRejected, decode_setpoint
 from sim_bridge.vehicle import Vehicle, VehicleEvent
@@ -72,6 +73,8 @@ class Autopilot:
     #: 14540, each hears only its own ACKs, unless both share one identity. The mavlink module's own
     #: first ACK of DO_SET_MODE stays on the receiving link.
     acks_on_links_that_saw_the_sender = False
+    #: the parameter that holds the battery's capacity in mAh (sim_bridge/battery.py)
+    battery_capacity_param = ""
 
     def __init__(self, vehicle: Vehicle, params: ParamStore, out: Outbox,
                  home: tuple[float, float, float], epoch_unix_s: float) -> None:
@@ -87,6 +90,8 @@ class Autopilot:
         self.streams: dict = data["streams"]
         self.rejected_setpoints = 0
         self.booted = False
+        self.battery = Battery()
+        self._battery_low_said = False
         self._data = data
         #: the real autopilot's boot timeline (``start_cold``), or None: ready after ``boot_s``
         self.cold: ColdBoot | None = None
@@ -174,7 +179,20 @@ class Autopilot:
     def mission_items(self) -> list[Any]:
         return []
 
+    def battery_capacity_mah(self) -> float:
+        return self.params.get(self.battery_capacity_param) if self.battery_capacity_param else 0.0
+
+    def battery_remaining_pct(self) -> int:
+        return self.battery.remaining_pct(self.battery_capacity_mah())
+
     def update(self, events: list[VehicleEvent]) -> None:
+        self.battery.step(self.now_s, self.vehicle.armed)
+        if not self._battery_low_said and self.battery_remaining_pct() < self.battery.spec.low_pct:
+            self._battery_low_said = True  # once, as the autopilots warn (their failsafe action is not simulated)
+            capacity = self.battery_capacity_mah()
+            self.out.text(mavlink.MAV_SEVERITY_WARNING, self.texts["battery_low"].format(
+                volts=self.battery.voltage_mv(capacity) / 1000.0, used_mah=self.battery.consumed_mah,
+                pct=self.battery_remaining_pct()))
         if self.cold is not None:
             for line in self.cold.texts_due(self.now_s):
                 self.out.text(mavlink.MAV_SEVERITY_INFO, line)

@@ -47,6 +47,7 @@ OBL_HOLD, OBL_LAND = 5, 6
 
 class PX4(Autopilot):
     name = "px4"
+    battery_capacity_param = "BAT1_CAPACITY"
     mav_autopilot = mavlink.MAV_AUTOPILOT_PX4
     frame_rules = FrameRules(frames=frozenset({mavlink.MAV_FRAME_LOCAL_NED, mavlink.MAV_FRAME_BODY_NED}),
                              body_yaw_relative=False, any_bit_ignores_group=False, body_position_ignored=True)

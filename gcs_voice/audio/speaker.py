@@ -1,0 +1,149 @@
+"""Sound out, beside the microphone: the speaker, the echo gate, and a loopback room for tests.
+
+The bridge's own cues come out of a speaker next to the microphone it listens with. ``EchoGate`` keeps
+when that is so (from the moment a sound starts until it ended plus a tail for the output latency and
+the room), and ``gcs_voice.audio.microphone`` feeds the segmenter silence for that time while the stop
+spotter still hears everything: half-duplex for commands, full-duplex for "stop".
+
+``EchoRoom`` is the speaker and the microphone of a ``--listen-wav`` session made honest: what a player
+plays into it is added, attenuated and delayed, to the recording at the moment it is played, exactly as
+a microphone beside the speaker would pick it up. Every player blocks for the sound's length, as a
+real speaker takes that long.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections.abc import Iterable, Iterator
+from typing import Protocol
+
+import numpy as np
+
+from gcs_voice.audio import SAMPLE_RATE
+from gcs_voice.audio.sources import AudioChunk
+from gcs_voice.errors import AudioError
+
+__all__ = ["Player", "EchoGate", "SpeakerPlayer", "EchoRoom", "TimedSink", "open_speaker", "pcm_seconds"]
+
+
+def pcm_seconds(pcm: bytes) -> float:
+    """Length of 16 kHz mono s16le PCM in seconds."""
+    return len(pcm) / 2 / SAMPLE_RATE
+
+
+class Player(Protocol):
+    """Plays 16 kHz mono s16le PCM and returns when it has been played."""
+
+    name: str
+
+    def play(self, pcm: bytes) -> None: ...
+
+
+class EchoGate:
+    """When the microphone may be hearing the bridge's own sound (UNIX times); thread-safe."""
+
+    def __init__(self, tail_s: float) -> None:
+        self.tail_s = tail_s
+        self._spans: list[tuple[float, float]] = []
+        self._lock = threading.Lock()
+
+    def hold(self, start_t: float, duration_s: float) -> None:
+        """A sound starts at ``start_t`` (call before it does) and lasts ``duration_s``."""
+        with self._lock:
+            self._spans.append((start_t, start_t + duration_s + self.tail_s))
+
+    def deaf(self, from_t: float, to_t: float) -> bool:
+        """Whether audio captured between these times may hold the bridge's own sound."""
+        with self._lock:
+            self._spans = [s for s in self._spans if s[1] >= from_t - 60.0]  # old spans go (a minute's margin)
+            return any(start <= to_t and from_t <= end for start, end in self._spans)
+
+
+class SpeakerPlayer:
+    """The sound card's output through sounddevice (blocking play)."""
+
+    name = "speaker"
+
+    def __init__(self, device: int | str | None = None) -> None:
+        import sounddevice as sd
+
+        self._sd = sd
+        self.device = device
+
+    def play(self, pcm: bytes) -> None:
+        samples = np.frombuffer(pcm, "<i2")
+        self._sd.play(samples, SAMPLE_RATE, device=self.device, blocking=True)
+
+
+def open_speaker(device: int | str | None = None) -> SpeakerPlayer:
+    """The output device, or AudioError (one line) when there is no PortAudio or no output device."""
+    try:
+        import sounddevice as sd
+    except (ImportError, OSError) as exc:
+        raise AudioError(f"no speaker: {exc} (install libportaudio2)") from None
+    try:
+        sd.query_devices(device, kind="output")
+    except Exception as exc:  # sounddevice raises PortAudioError / ValueError
+        raise AudioError(f"no speaker: {str(exc).splitlines()[0]}") from None
+    return SpeakerPlayer(device)
+
+
+class TimedSink:
+    """Plays nowhere, in real time: where there is no sound card (a benchmark), a cue is still rendered and
+    takes its length, so what feedback costs a session is measured, not skipped."""
+
+    name = "timed sink"
+
+    def play(self, pcm: bytes) -> None:
+        time.sleep(pcm_seconds(pcm))
+
+
+class EchoRoom:
+    """A speaker beside a microphone: ``play`` adds the sound to ``hear``'s chunks, ``gain`` down and
+    ``delay_s`` late, from the moment it is played (a sound played before the recording starts is lost,
+    as to a microphone not yet open)."""
+
+    name = "echo room"
+
+    def __init__(self, gain: float, delay_s: float) -> None:
+        self.gain = gain
+        self.delay_s = delay_s
+        self.t0: float | None = None  # UNIX time of the recording's first sample
+        self._pending: list[tuple[int, np.ndarray]] = []  # (first sample index in the recording, samples)
+        self._lock = threading.Lock()
+        #: every sound played into the recording, as (UNIX time played, seconds): what the tests check against
+        self.played: list[tuple[float, float]] = []
+
+    def start(self, t0: float) -> None:
+        """The recording's first sample is at UNIX time ``t0`` (``paced_chunks``' ``on_start``)."""
+        self.t0 = t0
+
+    def play(self, pcm: bytes) -> None:
+        now = time.time()
+        samples = np.frombuffer(pcm, "<i2").astype(np.float32) * self.gain
+        with self._lock:
+            if self.t0 is not None:
+                at = round((now + self.delay_s - self.t0) * SAMPLE_RATE)
+                self._pending.append((at, samples))
+                self.played.append((now, pcm_seconds(pcm)))
+        time.sleep(max(0.0, now + pcm_seconds(pcm) - time.time()))  # a speaker takes the sound's length
+
+    def hear(self, chunks: Iterable[AudioChunk]) -> Iterator[AudioChunk]:
+        """The chunks as the microphone hears them: the recording plus whatever was played into the room."""
+        for chunk in chunks:
+            first = round(chunk.start_s * SAMPLE_RATE)
+            x = np.frombuffer(chunk.pcm, "<i2").astype(np.float32)
+            last = first + x.size
+            with self._lock:
+                pending = list(self._pending)
+                self._pending = [(at, s) for at, s in pending if at + s.size > last]
+            mixed = False
+            for at, s in pending:
+                lo, hi = max(first, at), min(last, at + s.size)
+                if lo < hi:
+                    if not mixed:
+                        x, mixed = x.copy(), True
+                    x[lo - first:hi - first] += s[lo - at:hi - at]
+            yield chunk if not mixed else AudioChunk(np.clip(x, -32768, 32767).astype("<i2").tobytes(),
+                                                      chunk.start_s)

@@ -1,0 +1,266 @@
+"""What the pilot hears (gcs_voice.session.feedback), and that the bridge never hears itself.
+
+The sounds are the real ones (espeak-ng's words, the tones of sounds.toml); the microphone is a recording
+played in real time through ``EchoRoom``, which adds what the bridge plays, delayed and attenuated, as a
+microphone beside the speaker would; the segmenter is the real one (Silero) and the stop spotter the real
+PocketSphinx one. Nothing in the decision path is replaced.
+"""
+
+from __future__ import annotations
+
+import threading
+import tomllib
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gcs_voice.audio import SAMPLE_RATE
+from gcs_voice.audio.microphone import microphone_utterances
+from gcs_voice.audio.sources import paced_chunks, read_wav
+from gcs_voice.audio.speaker import EchoGate, EchoRoom
+from gcs_voice.domain.dictionary import ACTIONS
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.events import Event
+from gcs_voice.session.feedback import FEEDBACK_DIR, Cue, cue_for, load_phrases, load_sound_settings
+
+LANGUAGES = ("en", "es")
+#: the pilot speaks into the microphone from closer than the speaker beside it: the bridge's voice arrives this
+#: much below the pilot's (tools/bench_echo.py measures the stop spotter at other levels, 0 dB included)
+ECHO_BELOW_PILOT_DB = 10.0
+STOP_SPOTTER_TOML = Path(__file__).resolve().parent.parent / "gcs_voice" / "asr" / "stop_spotter.toml"
+
+
+def _event(kind: str, msg: str = "", **data) -> Event:
+    return Event(kind, msg, data=data)
+
+
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_every_action_has_words_and_none_contains_a_stop_word(lang: str) -> None:
+    phrases = load_phrases(lang)
+    assert set(ACTIONS) <= set(phrases.actions) and all(phrases.actions[a].strip() for a in ACTIONS)
+    spotter = tomllib.loads(STOP_SPOTTER_TOML.read_text(encoding="utf-8"))
+    stop_words = {w for section in spotter.values() if isinstance(section, dict) for w in section.get("words", [])}
+    assert {"stop", "hold", "para", "alto"} <= stop_words
+    said = [*phrases.actions.values(), *phrases.said.values(), *phrases.reasons.values(), *phrases.waiting.values()]
+    # the spotter hears the bridge's own voice: "stopping" would stop again, and be said again
+    offending = [s for s in said for w in stop_words if w in s.lower()]
+    assert not offending, offending
+
+
+def test_a_phrase_file_without_an_action_is_one_line_naming_it(tmp_path: Path) -> None:
+    text = (FEEDBACK_DIR / "en.toml").read_text(encoding="utf-8").replace('go_left = "going left"\n', "")
+    (tmp_path / "en.toml").write_text(text, encoding="utf-8")
+    with pytest.raises(GcsVoiceError, match=r"en\.toml: \[actions\] has no phrase for go_left"):
+        load_phrases("en", tmp_path)
+
+
+def test_each_event_has_the_cue_a_pilot_needs() -> None:
+    en, es = load_phrases("en"), load_phrases("es")
+    assert cue_for(_event("command", action="go_left", origin="voice"), en) == Cue("doing", "going left", True, 2.5)
+    assert cue_for(_event("command", action="go_left", origin="voice"), es).words == "a la izquierda"
+    assert cue_for(_event("command", action="stop", origin="shutdown"), en) is None
+    assert cue_for(_event("rejected", reason="not a command"), en).tone == "not_understood"
+    refused = cue_for(_event("refused", action="go_left", origin="voice",
+                             reason="vehicle is not armed: say 'take off' first"), en)
+    assert (refused.tone, refused.words) == ("refused", "refused, not armed")
+    other = cue_for(_event("refused", action="go_left", origin="voice",
+                           reason="vehicle is in BRAKE, not GUIDED: say 'take off' to fly by voice again"), en)
+    assert other.words == "refused, vehicle in BRAKE"
+    lost = cue_for(_event("refused", action="up", origin="voice", reason="link lost - nothing is commanded"), en)
+    assert lost.words == "refused, link lost"
+    limit = cue_for(_event("refused", action="go_left", reason="fence 20 m from home"), en)  # no origin: a limit
+    assert (limit.tone, limit.words) == ("warning", "fence reached")
+    floor = cue_for(_event("warning", "down -> stop: floor 0.5 m reached", source="mapper"), en)
+    assert floor.words == "floor reached"
+    assert cue_for(_event("warning", "go_left -> stop: link lost", source="mapper"), en) is None  # said by "link"
+    assert cue_for(_event("link", state="lost"), en).words == "link lost"
+    assert cue_for(_event("link", state="restored"), es).words == "enlace recuperado"
+    assert cue_for(_event("warning", "vehicle now RTL, armed", source="link"), en).words == "vehicle in RTL"
+    # PX4's Hold is not said "hold" (a stop word)
+    assert cue_for(_event("warning", "vehicle now HOLD, armed", source="link"), en).words == "vehicle in auto loiter"
+    waiting = cue_for(_event("ready", "waiting for: position (EKF)", waiting_for="position (EKF)"), en)
+    assert waiting.words == "waiting to arm: position estimate"
+    assert cue_for(_event("flight", what="take_off", ok=False), en).tone == "refused"
+    battery = cue_for(_event("vehicle", "vehicle: Battery 1 is low 10.92V used 8 mAh",
+                             text="Battery 1 is low 10.92V used 8 mAh"), en)
+    assert (battery.tone, battery.words) == ("warning", "battery low")
+    assert cue_for(_event("vehicle", text="Low battery level! Return advised"), es).words == "batería baja"
+    assert cue_for(_event("vehicle", text="EKF3 IMU0 is using GPS"), en) is None
+    assert cue_for(_event("heard", text="go left"), en) is None
+
+
+def _dominant_hz(pcm: bytes) -> float:
+    x = np.frombuffer(pcm, "<i2").astype(np.float64)
+    spectrum = np.abs(np.fft.rfft(x * np.hanning(x.size)))
+    return float(np.argmax(spectrum) * SAMPLE_RATE / x.size)
+
+
+def test_the_three_decision_tones_rise_stay_low_and_fall() -> None:
+    from gcs_voice.audio.sounds import tone
+
+    s = load_sound_settings()
+    contour = {}
+    for name in ("doing", "not_understood", "refused"):
+        pcm = tone(s.tones[name], s.amplitude, s.fade_s)
+        half = len(pcm) // 4 * 2
+        contour[name] = (_dominant_hz(pcm[:half]), _dominant_hz(pcm[half:]))
+    assert contour["doing"][1] > contour["doing"][0] * 1.3, contour            # rising
+    assert contour["refused"][1] < contour["refused"][0] / 1.3, contour        # falling
+    low = contour["not_understood"]
+    assert abs(low[0] - low[1]) < 20 and max(low) < min(contour["doing"]), contour  # one low note
+
+
+def _bridge_voice() -> bytes:
+    """What the bridge plays for "going left": the doing tone, then espeak-ng's words."""
+    from gcs_voice.audio.sounds import Speech, tone
+
+    s = load_sound_settings()
+    try:
+        words = Speech("en-us", s.speed_wpm).say("going left, going right, going forward")
+    except GcsVoiceError as exc:
+        pytest.skip(str(exc))
+    return tone(s.tones["doing"], s.amplitude, s.fade_s) + words
+
+
+def _listen(recording: bytes, bridge_pcm: bytes, play_at_s: float, gate: EchoGate | None,
+            on_speech=None, gain_db: float = 0.0, delay_s: float = 0.06) -> tuple[list, EchoRoom]:
+    """Hear ``recording`` in real time as a microphone beside the speaker, while the bridge plays
+    ``bridge_pcm`` once ``play_at_s`` of the recording has been heard (holding the gate first, as Feedback does)."""
+    room = EchoRoom(10 ** (gain_db / 20), delay_s)
+
+    def chunks():
+        played = False
+        for chunk in room.hear(paced_chunks(recording, on_start=room.start)):
+            if not played and chunk.start_s >= play_at_s:
+                played = True
+
+                def play() -> None:
+                    if gate is not None:
+                        import time
+
+                        gate.hold(time.time(), len(bridge_pcm) / 2 / SAMPLE_RATE)
+                    room.play(bridge_pcm)
+
+                threading.Thread(target=play, daemon=True).start()
+            yield chunk
+
+    utterances = list(microphone_utterances(on_speech=on_speech, chunks=chunks(), deaf=gate.deaf if gate else None))
+    return utterances, room
+
+
+def _voiced_dbfs(pcm: bytes) -> float:
+    """Level of the voiced frames (tools.bench_stream.voiced_level): speech, not its pauses."""
+    from tools.bench_stream import voiced_level
+
+    return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0] + 1e-9))
+
+
+def _level_dbfs(pcm: bytes) -> float:
+    x = np.frombuffer(pcm, "<i2").astype(np.float64) / 32768
+    return float(20 * np.log10(np.sqrt(np.mean(x * x)) + 1e-9))
+
+
+def test_the_bridge_does_not_hear_its_own_voice_but_would_without_the_gate() -> None:
+    voice = _bridge_voice()
+    silence = bytes(int(2.0 * SAMPLE_RATE) * 2 + len(voice))
+    heard_while_deaf: list[bytes] = []
+    utterances, room = _listen(silence, voice, 0.5, EchoGate(load_sound_settings().tail_s),
+                               on_speech=lambda pcm: heard_while_deaf.append(pcm) if pcm else None)
+    assert room.played, "the bridge's voice was not played into the room"
+    assert utterances == []
+    # the microphone did hear it (the stop spotter's path got the bridge's voice, not silence)
+    assert _level_dbfs(b"".join(heard_while_deaf)) > _level_dbfs(voice) - 10
+    # the same room without the gate: the bridge's own voice becomes utterances
+    ungated, _ = _listen(silence, voice, 0.5, None)
+    assert ungated, "without the gate the echo should have been an utterance: the test would prove nothing"
+
+
+def test_a_real_stop_said_over_the_bridge_voice_is_spotted(real_speech_dir: Path) -> None:
+    pytest.importorskip("pocketsphinx")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from tools.real_speech import load_recordings
+
+    spotter = load_stop_spotter(["en"])
+    stops = [read_wav(r.path) for r in load_recordings(real_speech_dir, split="test") if r.action == "stop"]
+    stop = next(pcm for pcm in stops if spotter.spot(pcm).fired)  # one the spotter hears alone
+    voice = _bridge_voice()
+    lead = int(1.2 * SAMPLE_RATE) * 2
+    recording = bytes(lead) + stop + bytes(int(2.0 * SAMPLE_RATE) * 2 + len(voice))
+    # the bridge's voice reaches the microphone ECHO_BELOW_PILOT_DB below the pilot's (voiced parts)
+    stream = spotter.start_stream()
+    fired: list[str] = []
+
+    def listener(pcm: bytes | None) -> None:
+        nonlocal stream
+        if pcm is None:
+            stream.finish()
+            stream = spotter.start_stream()
+        elif stream.accept(pcm) and not fired:
+            fired.append(stream.word)
+
+    gate = EchoGate(load_sound_settings().tail_s)
+    gain_db = _voiced_dbfs(stop) - _voiced_dbfs(voice) - ECHO_BELOW_PILOT_DB
+    utterances, room = _listen(recording, voice, 0.3, gate, on_speech=listener, gain_db=gain_db)
+    stream.finish()
+    # the stop was inside the bridge's sound, and the segmenter heard neither
+    (played_t, seconds), = room.played
+    stop_t = room.t0 + lead / 2 / SAMPLE_RATE
+    assert played_t < stop_t and stop_t + len(stop) / 2 / SAMPLE_RATE < played_t + seconds, "no overlap"
+    assert utterances == []
+    assert fired, "the stop said over the bridge's voice was not spotted"
+
+
+#: modes whose spoken name is checked per language (Spanish: POSHOLD and OFFBOARD are still heard as "alto")
+CHECKED_MODES = {"en": ("GUIDED", "RTL", "LAND", "BRAKE", "LOITER", "POSHOLD", "OFFBOARD", "HOLD"),
+                 "es": ("GUIDED", "RTL", "LAND", "BRAKE", "LOITER", "HOLD")}
+
+
+@pytest.mark.parametrize("lang", LANGUAGES)
+def test_no_cue_is_heard_as_a_stop_by_the_stop_spotter_of_its_language(lang: str) -> None:
+    """The spotter listens while the bridge speaks: a cue it took for a stop would stop the vehicle (seen:
+    "fence reached" after the warning beeps was "stay" 11 times in a 30-minute session, tools/bench_feedback_echo.py).
+    A session in both languages (``--lang auto``) runs both spotters: not clean yet (docs/bridge.md)."""
+    pytest.importorskip("pocketsphinx")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.audio.sounds import Speech, tone
+
+    s, p = load_sound_settings(), load_phrases(lang)
+    try:
+        speech = Speech(p.voice, s.speed_wpm)
+    except GcsVoiceError as exc:
+        pytest.skip(str(exc))
+    spotter = load_stop_spotter([lang])
+    cues = [("doing", w) for w in p.actions.values()]
+    cues += [("refused", f"{p.said['refused']}, {why}") for why in p.reasons.values()]
+    cues += [("warning", w) for w in (*p.reasons.values(), p.said["link_lost"], p.said["link_restored"],
+                                      p.said["battery"], p.said["error"], p.said["collision"], p.said["take_off_failed"])]
+    cues += [("warning", p.said["waiting"].format(what=w)) for w in p.waiting.values()]
+    cues += [("warning", p.mode(m)) for m in CHECKED_MODES[lang]]
+    cues += [("refused", f"{p.said['refused']}, {p.mode(m)}") for m in CHECKED_MODES[lang]]
+    cues += [("not_understood", "")]
+    heard = []
+    for name, words in cues:
+        pcm = tone(s.tones[name], s.amplitude, s.fade_s) + bytes(1600) + speech.say(words)
+        hit = spotter.spot(pcm)
+        if hit.fired:
+            heard.append((name, words, hit.word))
+    assert not heard, heard
+
+
+def test_a_spotter_stop_that_repeats_the_last_cue_is_not_said_again() -> None:
+    """The spotter may take the bridge's own "braking" for a stop: saying "braking" again would loop."""
+    from gcs_voice.audio.speaker import TimedSink
+    from gcs_voice.session.events import EventBus
+    from gcs_voice.session.feedback import Feedback
+
+    bus = EventBus()
+    feedback = Feedback("tones", {"en": load_phrases("en")}, "en", TimedSink(), EchoGate(0.0), bus)
+    bus.subscribe(feedback)
+    playing = threading.Event()
+    bus.subscribe(lambda e: playing.set() if e.kind == "feedback" else None)
+    bus.emit("command", "'hold' -> stop", action="stop", origin="voice")
+    assert playing.wait(10.0)  # the first "braking" is playing: a second one would be queued after it
+    bus.emit("command", "stop (spotter)", action="stop", origin="spotter")  # heard in the bridge's own cue
+    feedback.close()  # plays what is queued
+    assert [(c.tone, c.words) for _t, c, _s in feedback.played] == [("doing", "braking")]
