@@ -88,6 +88,10 @@ def test_each_event_has_the_cue_a_pilot_needs() -> None:
     assert cue_for(_event("vehicle", text="Low battery level! Return advised"), es).words == "batería baja"
     assert cue_for(_event("vehicle", text="EKF3 IMU0 is using GPS"), en) is None
     assert cue_for(_event("heard", text="go left"), en) is None
+    # another ground station took over (its ACK was heard): said; a mode change by nobody heard is the mode line's
+    assert cue_for(_event("takeover", mode="BRAKE", by="station"), en).words == "another station took over"
+    assert cue_for(_event("takeover", mode="BRAKE", by="station"), es).words == "otra estación tomó el control"
+    assert cue_for(_event("takeover", mode="BRAKE", by="unknown"), en) is None
 
 
 def _dominant_hz(pcm: bytes) -> float:

@@ -126,7 +126,7 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     if missing:
         raise GcsVoiceError(f"{path}: [actions] has no phrase for {', '.join(missing)}")
     needed = ("not_understood", "refused", "link_lost", "link_restored", "mode", "waiting", "battery",
-              "take_off_failed", "error", "collision")
+              "take_off_failed", "error", "collision", "takeover")
     missing = [k for k in needed if k not in tables["said"]]
     if missing:
         raise GcsVoiceError(f"{path}: [said] has no phrase for {', '.join(missing)}")
@@ -174,6 +174,9 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
         what = [words for key, words in phrases.waiting.items() if key.lower() in low]
         # a wait the table does not name (the arming mode settling: a second) is not said
         return Cue("warning", said["waiting"].format(what=what[0]), stale_s=STALE_S) if what else None
+    if event.kind == "takeover" and d.get("by") == "station":
+        # the mode itself is said by the link's mode line; this says who: another ground station took over
+        return Cue("warning", said["takeover"])
     if event.kind == "flight":
         if d.get("what") == "mode" and d.get("mode"):  # the vehicle's mode changed, not by us
             return Cue("warning", phrases.mode(str(d["mode"])))
