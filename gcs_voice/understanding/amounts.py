@@ -18,8 +18,8 @@ from typing import Any
 
 from gcs_voice.errors import GcsVoiceError
 
-__all__ = ["AMOUNTS_PATH", "Amount", "AmountsError", "Split", "alike", "amount_reason", "number_words",
-           "split_amount", "vocabulary"]
+__all__ = ["AMOUNTS_PATH", "Amount", "AmountsError", "Split", "alike", "amount_reason", "judge", "min_amount_gap",
+           "number_words", "split_amount", "vocabulary"]
 
 AMOUNTS_PATH = Path(__file__).resolve().parent / "amounts.toml"
 #: which motion classes take which amount kind
@@ -213,6 +213,42 @@ def amount_reason(amount: Amount, action: str, lang: str) -> tuple[Amount | None
     if not lo <= amount.value <= hi:
         return None, f"{amount.value} {_unit_name(wanted)} is out of range ({lo}-{hi}): not done"
     return Amount(amount.value, wanted, amount.height, amount.words), ""
+
+
+@lru_cache(maxsize=4)
+def min_amount_gap(path: Path = AMOUNTS_PATH) -> float:
+    """How much more likely the heard amount must be than each that sounds alike (``[decision]``)."""
+    try:
+        return float(tomllib.loads(Path(path).read_text(encoding="utf-8"))["decision"]["min_amount_gap"])
+    except (OSError, tomllib.TOMLDecodeError, KeyError, TypeError, ValueError) as exc:
+        raise AmountsError(f"{path}: [decision] min_amount_gap missing or malformed ({exc})") from None
+
+
+def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any, action: str) -> tuple[Amount | None, str]:
+    """The amount said with ``action`` in the engine's own ``transcript`` (None, "" when none was said), or the
+    reason to do nothing: unclear, out of range, not fitting the motion, or not clearly more likely than an
+    amount that sounds alike (``extra["amount_gap"]``, Whisper scoring); an engine that cannot weigh amounts
+    never acts on one."""
+    lang = dictionary.language
+    if not transcript or vocabulary(lang) is None:
+        return None, ""
+    from gcs_voice.domain.text import normalize_text  # the domain layer; imported here to keep this module light
+
+    split = split_amount(dictionary.strip_skip_words(normalize_text(transcript)), lang)
+    if not split.words:
+        return None, ""
+    if split.reason:
+        return None, f"heard '{transcript}': {split.reason}"
+    assert split.amount is not None
+    gap = extra.get("amount_gap")
+    if gap is None:
+        return None, f"heard an amount ('{split.words}'), but {engine} cannot weigh amounts: say the command alone"
+    if gap < min_amount_gap():
+        rival = int(extra.get("amount_rival", 0))
+        return None, (f"unsure of the amount: heard '{split.words}', but nearly as much {rival} "
+                      f"(amount_gap {gap:.2f} < {min_amount_gap():.2f}): say again")
+    amount, why = amount_reason(split.amount, action, lang)
+    return amount, (f"heard '{transcript}': {why}" if why else "")
 
 
 def alike(value: int, lang: str) -> tuple[int, ...]:
