@@ -85,3 +85,7 @@ def test_an_unsure_amount_is_no_action() -> None:
         Recognition((Hypothesis("go forward", confidence=1.0),), "vosk", "en", 1.0, {},
                     transcript="go forward 15 meters"), [EN])
     assert other_engine.action is None
+    # a recogniser that writes what it heard (no separate transcript) and puts an amount in it: never open-ended
+    heard_only = get_matcher("levenshtein", max_distance=1.0, min_margin=0.0).decide(
+        Recognition((Hypothesis("go left two meters", confidence=1.0),), "vosk", "en", 1.0, {}), [EN])
+    assert heard_only.action is None and "cannot weigh amounts" in heard_only.reason

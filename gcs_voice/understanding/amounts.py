@@ -224,7 +224,8 @@ def min_amount_gap(path: Path = AMOUNTS_PATH) -> float:
         raise AmountsError(f"{path}: [decision] min_amount_gap missing or malformed ({exc})") from None
 
 
-def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any, action: str) -> tuple[Amount | None, str]:
+def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any,
+          action: str) -> tuple[Amount | None, str]:
     """The amount said with ``action`` in the engine's own ``transcript`` (None, "" when none was said), or the
     reason to do nothing: unclear, out of range, not fitting the motion, or not clearly more likely than an
     amount that sounds alike (``extra["amount_gap"]``, Whisper scoring); an engine that cannot weigh amounts

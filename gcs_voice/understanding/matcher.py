@@ -125,8 +125,8 @@ class Matcher:
         reason = (_negation_reason(recognition, best) or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
-        amount, reason = amounts.judge(recognition.transcript, recognition.extra, recognition.engine,
-                                       best.dictionary, best.phrase.action)
+        amount, reason = amounts.judge(recognition.transcript or recognition.text, recognition.extra,
+                                       recognition.engine, best.dictionary, best.phrase.action)
         if reason:  # a wrong amount is a wrong action
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
