@@ -187,7 +187,8 @@ class PhraseScores:
     cut: bool = False
     #: an amount said after the command ("Go forward three meters."): how much more likely (summed token
     #: log-probability) the transcript is with the amount heard than with the likeliest amount that sounds
-    #: alike ("fifty" for "fifteen"; +inf when none does), and that rival amount (0: none). None: no amount.
+    #: alike ("fifty" for "fifteen"; +inf when none does), and that rival amount (0: none; -N: N with the height
+    #: word put in or taken out, "a ocho metros" against "ocho metros"). None: no amount.
     amount_gap: float | None = None
     amount_rival: int = 0
 
@@ -311,28 +312,39 @@ def amount_transcript(forms: PhraseForms, text: str):
 
 def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, list[int] | None]]:
     """The transcript with its amount replaced by each amount that sounds alike, as Whisper would write it
-    (None: the heard number could not be found in the transcript to replace, so that rival cannot be weighed)."""
+    (None: the heard number could not be found in the transcript to replace, so that rival cannot be weighed);
+    and with the height word ("to", "a") taken out or put in, as rival -value: "baja a ocho metros" (to 8 m)
+    and "baja ocho metros" (8 m down) differ by one short word."""
     if split.amount is None:
         return []
     value, rivals = split.amount.value, []
     digits = any(ch.isdigit() for ch in text)
-    for other in alike(value, lang):
-        said = str(other) if digits else number_words(other, lang)
-        heard = str(value) if digits else None
-        if heard is None:  # the words of the heard number as written, case kept
-            words = normalize_text(text, fold=False).split()
-            spoken = number_words(value, lang).split()
-            for i in range(len(words) - len(spoken) + 1):
-                if [normalize_text(w) for w in words[i:i + len(spoken)]] == spoken:
-                    heard = " ".join(text.split()[i:i + len(spoken)])
-                    break
-        if heard is None or heard not in text:
-            rivals.append((other, None))
-            continue
-        before, _, after = text.rpartition(heard)
+    heard = str(value) if digits else None
+    if heard is None:  # the words of the heard number as written, case kept
+        words = normalize_text(text, fold=False).split()
+        spoken = number_words(value, lang).split()
+        for i in range(len(words) - len(spoken) + 1):
+            if [normalize_text(w) for w in words[i:i + len(spoken)]] == spoken:
+                heard = " ".join(text.split()[i:i + len(spoken)])
+                break
+    if heard is None or heard not in text:
+        return [(other, None) for other in (*alike(value, lang), -value)]
+    before, _, after = text.rpartition(heard)
+
+    def written(head: str, number: str) -> list[int]:
         if heard[:1].isupper():
-            said = said[:1].upper() + said[1:]
-        rivals.append((other, list(canonical_tokens(tokenizer, " " + (before + said + after).strip()))))
+            number = number[:1].upper() + number[1:]
+        return list(canonical_tokens(tokenizer, " " + (head + number + after).strip()))
+
+    for other in alike(value, lang):
+        rivals.append((other, written(before, str(other) if digits else number_words(other, lang))))
+    to_words = sorted(vocabulary(lang).to)
+    head = before.rstrip()
+    last = head.split()[-1] if head.split() else ""
+    if split.amount.height and normalize_text(last) in to_words:   # "to 5 meters" against "5 meters"
+        rivals.append((-value, written(head[: len(head) - len(last)], heard)))
+    elif not split.amount.height and to_words:                      # "8 metros" against "a 8 metros"
+        rivals.append((-value, written(f"{head} {to_words[0]} ", heard)))
     return rivals
 
 

@@ -246,7 +246,9 @@ def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any
         return None, f"heard an amount ('{split.words}'), but {engine} cannot weigh amounts: say the command alone"
     if gap < min_amount_gap():
         rival = int(extra.get("amount_rival", 0))
-        return None, (f"unsure of the amount: heard '{split.words}', but nearly as much {rival} "
+        other = (f"'{abs(rival)}' as a {'distance' if split.amount.height else 'height'}" if rival < 0
+                 else f"{rival}")
+        return None, (f"unsure of the amount: heard '{split.words}', but nearly as much {other} "
                       f"(amount_gap {gap:.2f} < {min_amount_gap():.2f}): say again")
     amount, why = amount_reason(split.amount, action, lang)
     return amount, (f"heard '{transcript}': {why}" if why else "")
