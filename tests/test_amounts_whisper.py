@@ -89,3 +89,20 @@ def test_an_unsure_amount_is_no_action() -> None:
     heard_only = get_matcher("levenshtein", max_distance=1.0, min_margin=0.0).decide(
         Recognition((Hypothesis("go left two meters", confidence=1.0),), "vosk", "en", 1.0, {}), [EN])
     assert heard_only.action is None and "cannot weigh amounts" in heard_only.reason
+
+
+def test_a_spanish_distance_down_after_an_elided_a_is_unsure() -> None:
+    """'baja a ocho metros' is heard 'baja ocho metros': a distance after 'baja' is asked again, never flown as
+    one; after 'desciende' (no 'a' to run into) it is flown."""
+    from gcs_voice.asr.base import Hypothesis, Recognition
+
+    def decide(phrase: str, transcript: str):
+        extra = {"margin": 0.0, "class_gap": 3.0, "free_logprob": -0.2, "amount_gap": 6.0, "amount_rival": -8.0}
+        return get_matcher("phonetic").decide(
+            Recognition((Hypothesis(phrase, confidence=1.0, score=-0.1),), "whisper-score", "es", 1.0, extra,
+                        transcript=transcript), [ES])
+
+    elided = decide("baja", "Baja ocho metros.")
+    assert elided.action is None and "a ocho metros" in elided.reason
+    assert decide("baja", "Baja a ocho metros.").amount == Amount(8, "m", height=True, words="a ocho metros")
+    assert decide("desciende", "Desciende ocho metros.").amount == Amount(8, "m", words="ocho metros")

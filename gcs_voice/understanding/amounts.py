@@ -73,6 +73,7 @@ class Vocabulary:
     height: tuple[tuple[str, ...], ...]
     units: dict[str, str]
     say_hundred: str
+    to_elided_after: tuple[str, ...]
     alike: tuple[frozenset[int], ...]
     ranges: dict[str, tuple[int, int]]
 
@@ -102,6 +103,7 @@ def vocabulary(lang: str, path: Path = AMOUNTS_PATH) -> Vocabulary | None:
             height=tuple(tuple(h.split()) for h in table.get("height", [])),
             units={str(k): str(v) for k, v in table["units"].items()},
             say_hundred=str(table.get("say_hundred", "")),
+            to_elided_after=tuple(str(w) for w in table.get("to_elided_after", [])),
             alike=tuple(frozenset(int(v) for v in group) for group in table.get("alike", [])),
             ranges=ranges,
         )
@@ -251,6 +253,12 @@ def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any
         return None, (f"unsure of the amount: heard '{split.words}', but nearly as much {other} "
                       f"(amount_gap {gap:.2f} < {min_amount_gap():.2f}): say again")
     amount, why = amount_reason(split.amount, action, lang)
+    if amount is not None and action in HEIGHT_MOTIONS and not amount.height:
+        last = split.command.split()[-1] if split.command else ""
+        vocab = vocabulary(lang)
+        if vocab is not None and vocab.to and any(last.endswith(end) for end in vocab.to_elided_after):
+            return None, (f"unsure of the amount: '{split.command} {split.words}' sounds like '{split.command} "
+                          f"{sorted(vocab.to)[0]} {split.words}' (a height): say it with another word")
     return amount, (f"heard '{transcript}': {why}" if why else "")
 
 
