@@ -193,3 +193,21 @@ def test_plain_motions_are_unchanged() -> None:
     mapper.apply("go_forward", at())
     state = fly(mapper, at(), 30.0)
     assert mapper.action == "go_forward" and mapper.bound is None and state.north_m > 10.0
+
+
+def test_a_paused_bounded_motion_resumes_toward_the_same_target() -> None:
+    """While an utterance is decided the vehicle holds; speech that was no command resumes the bounded motion
+    (not an open-ended one), and it still ends at its target."""
+    mapper = ActionMapper(SETTINGS)
+    state = at()
+    mapper.apply("go_right", state, Amount(4, "m"))
+    state = fly(mapper, state, 2.0)
+    assert mapper.pause(state) == "go_right" and mapper.setpoint(state).is_stop and mapper.bound is None
+    assert mapper.resume(state) == "go_right" and mapper.bound is not None
+    end = fly(mapper, state, 60.0)
+    assert mapper.action == "stop" and (end.north_m, end.east_m) == pytest.approx((0.0, 4.0), abs=1e-9)
+    mapper.apply("go_right", end, Amount(2, "m"))
+    mapper.pause(end)
+    mapper.forget_pause()
+    mapper.apply("stop", end)                 # a stop decided during the pause: the target is forgotten
+    assert mapper.bound is None and mapper.paused_bound is None

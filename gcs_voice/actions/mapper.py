@@ -133,8 +133,9 @@ class ActionMapper:
         self._halted = False
         #: the motion ``pause()`` holds until ``resume()`` (None: nothing paused)
         self.paused: str | None = None
-        #: the target of the current bounded motion (None: open-ended, or no motion)
+        #: the target of the current bounded motion (None: open-ended, or no motion), and of the paused one
         self.bound: Bound | None = None
+        self.paused_bound: Bound | None = None
         #: UNIX time of the last pause or resume, read under the lock: every setpoint decided from then on
         #: (a setpoint's time is read before it is computed) follows it
         self.paused_t = 0.0
@@ -156,13 +157,13 @@ class ActionMapper:
     def pause(self, state: VehicleState) -> str | None:
         """Hold where the vehicle is while an utterance is decided; the motion paused, or None (none moving).
 
-        A bounded motion is not paused (its resume would forget the bound): it ends by itself, and a command
-        decided meanwhile ends it as it ends any motion."""
+        A bounded motion is paused too, and resumes toward the same target."""
         with self._lock:
-            if self._halted or self.action not in TRANSLATING_MOTIONS or self.bound is not None:
+            if self._halted or self.action not in TRANSLATING_MOTIONS:
                 return None
             self._update_holds(self.action, "stop", state)
             self.paused, self.action = self.action, "stop"
+            self.paused_bound, self.bound = self.bound, None
             self.paused_t = time.time()
             return self.paused
 
@@ -170,9 +171,11 @@ class ActionMapper:
         """Go on with the paused motion (the utterance was not a command); None when nothing is paused now."""
         with self._lock:
             action, self.paused = self.paused, None
+            bound, self.paused_bound = self.paused_bound, None
             if action is None or self._halted:
                 return None
             self._apply(action, state)
+            self.bound = bound   # a bounded motion goes on to the same target
             self.paused_t = time.time()
             return action
 
@@ -180,6 +183,7 @@ class ActionMapper:
         """End a pause without resuming: the vehicle stays stopped; the motion that was paused, or None."""
         with self._lock:
             action, self.paused = self.paused, None
+            self.paused_bound = None
             return action
 
     def _init_yaw(self, state: VehicleState) -> float:
@@ -259,7 +263,7 @@ class ActionMapper:
         if action not in ACTIONS:
             raise UnknownActionError(f"unknown action {action!r}; expected one of {', '.join(ACTIONS)}")
         self.paused = None  # a decided action replaces the pause
-        self.bound = None   # any command ends a bounded motion
+        self.bound = self.paused_bound = None   # any command ends a bounded motion
         yaw = self._init_yaw(state)
         if action in FLIGHT_ACTIONS:
             self.action = "stop"
@@ -290,7 +294,7 @@ class ActionMapper:
 
     def _switch_to_stop(self, reason: str, state: VehicleState | None = None) -> None:
         self.paused = None  # an automatic stop (link lost, floor, Ctrl-C) is not undone by a resume
-        self.bound = None
+        self.bound = self.paused_bound = None
         if self.action == "stop":
             return
         self.events.append(f"{self.action} -> stop: {reason}")
