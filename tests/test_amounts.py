@@ -9,7 +9,7 @@ import pytest
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link.state import VehicleState
 from gcs_voice.settings import load_settings
-from gcs_voice.understanding.amounts import Amount, alike, amount_reason, number_words, split_amount
+from gcs_voice.domain.amounts import Amount, alike, amount_reason, number_words, split_amount
 
 SETTINGS = load_settings()
 

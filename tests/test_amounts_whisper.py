@@ -7,7 +7,7 @@ import pytest
 from gcs_voice.asr.registry import load_recognizer
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import get_matcher
-from gcs_voice.understanding.amounts import Amount
+from gcs_voice.domain.amounts import Amount
 from tests.asr_speech import pcm_of
 
 EN, ES = load_language("en"), load_language("es")

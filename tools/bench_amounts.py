@@ -20,7 +20,7 @@ import numpy as np
 
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
-from gcs_voice.understanding.amounts import DISTANCE_MOTIONS, HEIGHT_MOTIONS, TURNS, number_words, vocabulary
+from gcs_voice.domain.amounts import DISTANCE_MOTIONS, HEIGHT_MOTIONS, TURNS, number_words, vocabulary
 from tools.bench_real import pct, recognise_one
 from tools.make_corpus import mix_at_snr, read_wav, synthesise
 from tools.real_speech import SHARED
@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
              "with an amount (1-20 m, 5-180 degrees, and 'to N metres' for up/down), one amount each, spoken by "
              f"{voices}; clean, and at 12 dB of the four real noises of ../shared/noise in turn. Whisper base, "
              f"scoring mode, the {DEFAULT_MATCHER} matcher, thresholds as shipped (min_amount_gap in "
-             "gcs_voice/understanding/amounts.toml). Wrong amount = the class right but another amount or none.", "",
+             "gcs_voice/domain/amounts.toml). Wrong amount = the class right but another amount or none.", "",
              "| lang | condition | n | right | wrong class | wrong amount | no action |",
              "| --- | --- | --- | --- | --- | --- | --- |", *rows, "",
              f"Decision time (end of audio to decision), p95 over all {len(times)}: {p95:.0f} ms, measured while other "

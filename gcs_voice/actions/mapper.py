@@ -15,7 +15,7 @@ height where it was heard; a turn holds the point it started from; ``go_*`` hold
 ``up``/``down`` hold their horizontal point. A hold carries over while the next action keeps that axis
 still (stop then turn keeps the stop's point), so repeated commands do not creep.
 
-Bounded motions (an amount was said, ``gcs_voice.understanding.amounts``): "go forward 3 m" sets a target 3 m
+Bounded motions (an amount was said, ``gcs_voice.domain.amounts``): "go forward 3 m" sets a target 3 m
 ahead of where the vehicle is held, "up 2 m" / "climb to 5 m" a height, "turn left 45" the heading target
 45 degrees on. The motion flies at the usual speed, slowing within ``1 / BOUND_GAIN_HZ`` seconds of its target,
 and ends by itself there: a stop whose hold is the target itself (not where the vehicle happened to be), so
@@ -42,7 +42,7 @@ from typing import Protocol
 from gcs_voice.actions.setpoint import Setpoint, body_to_ned, wrap_deg
 from gcs_voice.domain.dictionary import ACTIONS, FLIGHT_ACTIONS
 from gcs_voice.settings import Settings, load_settings
-from gcs_voice.understanding.amounts import Amount
+from gcs_voice.domain.amounts import Amount
 
 __all__ = ["ActionMapper", "MappedAction", "UnknownActionError"]
 

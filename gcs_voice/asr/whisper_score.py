@@ -36,7 +36,7 @@ from rapidfuzz import fuzz
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.domain.text import normalize_text
-from gcs_voice.understanding.amounts import alike, number_words, split_amount, vocabulary
+from gcs_voice.domain.amounts import alike, number_words, split_amount, vocabulary
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
            "generation_length", "only_repeats", "preselect", "score_utterance"]

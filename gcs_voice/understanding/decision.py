@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
-from gcs_voice.understanding.amounts import Amount
+from gcs_voice.domain.amounts import Amount
 
 __all__ = ["Decision"]
 

@@ -16,7 +16,7 @@ from pathlib import Path
 from rapidfuzz.distance import Levenshtein
 
 from gcs_voice.asr.base import Recognition
-from gcs_voice.understanding import amounts
+from gcs_voice.domain import amounts
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.errors import GcsVoiceError

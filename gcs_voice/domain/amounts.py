@@ -16,6 +16,7 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
+from gcs_voice.domain.text import normalize_text
 from gcs_voice.errors import GcsVoiceError
 
 __all__ = ["AMOUNTS_PATH", "Amount", "AmountsError", "Split", "alike", "amount_reason", "judge", "min_amount_gap",
@@ -235,8 +236,6 @@ def judge(transcript: str, extra: dict[str, float], engine: str, dictionary: Any
     lang = dictionary.language
     if not transcript or vocabulary(lang) is None:
         return None, ""
-    from gcs_voice.domain.text import normalize_text  # the domain layer; imported here to keep this module light
-
     split = split_amount(dictionary.strip_skip_words(normalize_text(transcript)), lang)
     if not split.words:
         return None, ""
