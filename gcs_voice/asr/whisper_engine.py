@@ -254,6 +254,9 @@ class WhisperRecognizer:
             "class_gap": min(result.class_gap, 99.0),
             "transcript_cut": float(result.cut),  # the speech went on past the free pass: more than a command
         }
+        if result.amount_gap is not None:  # an amount was said: how surely, against the amounts that sound alike
+            extra["amount_gap"] = max(min(result.amount_gap, 99.0), -99.0)
+            extra["amount_rival"] = float(result.amount_rival)
         if fixed_lang is None:
             _, extra["language_probability"], extra["dictionary_language_mass"] = self.detect(encoded, lang)
         hypotheses = tuple(Hypothesis(phrase.text, confidence=math.exp(min(0.0, score)), score=score)

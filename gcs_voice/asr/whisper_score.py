@@ -36,6 +36,7 @@ from rapidfuzz import fuzz
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.domain.text import normalize_text
+from gcs_voice.domain.amounts import alike, number_words, split_amount, vocabulary
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
            "generation_length", "only_repeats", "preselect", "score_utterance"]
@@ -184,6 +185,12 @@ class PhraseScores:
     best_mean: float | None = None
     heard_text: str = ""
     cut: bool = False
+    #: an amount said after the command ("Go forward three meters."): how much more likely (summed token
+    #: log-probability) the transcript is with the amount heard than with the likeliest amount that sounds
+    #: alike ("fifty" for "fifteen"; +inf when none does), and that rival amount (0: none; -N: N with the height
+    #: word put in or taken out, "a ocho metros" against "ocho metros"). None: no amount.
+    amount_gap: float | None = None
+    amount_rival: int = 0
 
     @property
     def best(self) -> tuple[Phrase, float] | None:
@@ -288,6 +295,59 @@ def generation_length(prompt_length: int, new_tokens: int) -> int:
     return max(2 * new_tokens, new_tokens + prompt_length - 1)
 
 
+#: tokens the free pass may write beyond a command for its amount ("one hundred and eighty degrees")
+AMOUNT_TOKENS = 8
+
+
+def amount_transcript(forms: PhraseForms, text: str):
+    """The split of a free transcript that is a dictionary command followed by an amount, else None."""
+    lang = forms.dictionary.language
+    if vocabulary(lang) is None:
+        return None
+    split = split_amount(forms.dictionary.strip_skip_words(normalize_text(text)), lang)
+    if not split.words or split.command not in forms.dictionary.by_key:
+        return None
+    return split
+
+
+def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, list[int] | None]]:
+    """The transcript with its amount replaced by each amount that sounds alike, as Whisper would write it
+    (None: the heard number could not be found in the transcript to replace, so that rival cannot be weighed);
+    and with the height word ("to", "a") taken out or put in, as rival -value: "baja a ocho metros" (to 8 m)
+    and "baja ocho metros" (8 m down) differ by one short word."""
+    if split.amount is None:
+        return []
+    value, rivals = split.amount.value, []
+    digits = any(ch.isdigit() for ch in text)
+    heard = str(value) if digits else None
+    if heard is None:  # the words of the heard number as written, case kept
+        words = normalize_text(text, fold=False).split()
+        spoken = number_words(value, lang).split()
+        for i in range(len(words) - len(spoken) + 1):
+            if [normalize_text(w) for w in words[i:i + len(spoken)]] == spoken:
+                heard = " ".join(text.split()[i:i + len(spoken)])
+                break
+    if heard is None or heard not in text:
+        return [(other, None) for other in (*alike(value, lang), -value)]
+    before, _, after = text.rpartition(heard)
+
+    def written(head: str, number: str) -> list[int]:
+        if heard[:1].isupper():
+            number = number[:1].upper() + number[1:]
+        return list(canonical_tokens(tokenizer, " " + (head + number + after).strip()))
+
+    for other in alike(value, lang):
+        rivals.append((other, written(before, str(other) if digits else number_words(other, lang))))
+    to_words = sorted(vocabulary(lang).to)
+    head = before.rstrip()
+    last = head.split()[-1] if head.split() else ""
+    if split.amount.height and normalize_text(last) in to_words:   # "to 5 meters" against "5 meters"
+        rivals.append((-value, written(head[: len(head) - len(last)], heard)))
+    elif not split.amount.height and to_words:                      # "8 metros" against "a 8 metros"
+        rivals.append((-value, written(f"{head} {to_words[0]} ", heard)))
+    return rivals
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
                     extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean",
                     context: str = "", between_stages: Callable[[], None] | None = None) -> PhraseScores:
@@ -307,16 +367,33 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # The free pass has room for the longest phrase (or not-command) of the dictionary, its period and
     # ``extra_tokens`` more ("Okay, go to the right."): a transcript that runs out of it said more than a command.
     max_new_tokens = max((len(t) for t in forms.tokens), default=0) + extra_tokens
-    free = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), max_new_tokens),
+    # A command with an amount may run past that; anything else is judged on the first max_new_tokens only,
+    # exactly as without amounts (Whisper's greedy path does not depend on how far it may go).
+    room = max_new_tokens + (AMOUNT_TOKENS if vocabulary(forms.dictionary.language) is not None else 0)
+    free = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), room),
                           beam_size=1, return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
                           suppress_blank=True, suppress_tokens=[-1])[0]
-    greedy = list(free.sequences_ids[0])[:max_new_tokens]
+    whole = list(free.sequences_ids[0])[:room]
+    greedy = whole[:max_new_tokens]
+    amount = None
+    if room > max_new_tokens:
+        # its first sentence, when what follows only loops over it ("Turn left 45 degrees. Turn left 45 ...")
+        said = [tokenizer.decode([t]) for t in whole]
+        end = next((i + 1 for i, piece in enumerate(said) if piece.strip() in (".", "!", "?")), len(whole))
+        if (end < len(whole) and only_repeats(said, end)) or len(whole) < room:
+            amount = amount_transcript(forms, tokenizer.decode(whole[:end]))
+            if amount is not None:
+                greedy, max_new_tokens = whole[:end], room
     steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0][:max_new_tokens]]
     pieces = [tokenizer.decode([t]) for t in greedy]
     if between_stages is not None:
         between_stages()
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []
+    if amount is not None:  # the whole transcript is the unit: "Up two meters" is no loop of "Up"
+        unit = greedy[:]
+        while unit and not _word(tokenizer.decode(unit[-1:])):
+            unit.pop()
     # Out of tokens on speech that is not a loop: it said more than the longest command, and no phrase
     # score could make it one, so the batched decoder pass over the phrases is skipped.
     loop = only_repeats(pieces, len(unit))
@@ -329,13 +406,25 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
         unit = unit + list(tokenizer.encode("."))
     else:
         unit = []
-    sequences = [list(forms.tokens[i]) for i in chosen] + ([unit] if unit else [])
+    free_written = tokenizer.decode(unit[:-1]).strip() if unit else ""
+    rivals = _amount_rivals(tokenizer, free_written + ".", amount, forms.dictionary.language) if amount else []
+    sequences = ([list(forms.tokens[i]) for i in chosen] + [toks for _, toks in rivals if toks is not None]
+                 + ([unit] if unit else []))
     encoded = np.asarray(encoder_output)
     batch = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(sequences), axis=0)))
     results = model.align(batch, prompt, sequences, [num_frames] * len(sequences))
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
     free_lp = logprobs.pop() if unit else np.empty(0)
     free_logprob = _mean(free_lp)
+    rival_lps = [logprobs.pop() for _, toks in rivals if toks is not None][::-1]
+    amount_gap, amount_rival = None, 0
+    if amount is not None and unit:
+        amount_gap = math.inf
+        scored = iter(rival_lps)
+        for value, toks in rivals:   # a rival that could not be written is not ruled out: unsure
+            gap = -math.inf if toks is None else float(np.sum(free_lp)) - float(np.sum(next(scored)))
+            if gap < amount_gap:
+                amount_gap, amount_rival = gap, value
     if rank_by not in RANK_BY:
         raise ValueError(f"score_rank_by must be one of {', '.join(RANK_BY)}, not {rank_by!r}")
     rank = RANK_BY[rank_by]
@@ -353,10 +442,12 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # writing that command, and scores as one; "Go up." alone is far less likely than what it heard.
     free_text = tokenizer.decode(unit[:-1]).strip()
     written = forms.dictionary.by_key.get(forms.dictionary.strip_skip_words(normalize_text(free_text)))
+    if amount is not None:  # "Go forward three meters." is a way of writing "go forward" with its amount
+        written = forms.dictionary.by_key.get(amount.command)
     if written is not None and (id(written) not in best or rank(free_lp) > best[id(written)][1]):
         best[id(written)] = (written, rank(free_lp), free_logprob)
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, free_text, free_logprob, float(free.no_speech_prob),
                         not_command, ordered[0][2] if ordered else None,
-                        tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut)
+                        tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut, amount_gap, amount_rival)

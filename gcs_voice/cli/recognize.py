@@ -135,6 +135,7 @@ def run(args: argparse.Namespace) -> int:
             row = {
                 "file": name, "lang": decision.lang or recognition.lang, "text": recognition.text,
                 "phrase": decision.phrase, "action": decision.action, "score": round(decision.score, 4),
+                "amount": decision.amount.label if decision.amount else None,
                 "reason": decision.reason, "ms": round(ms, 1), "engine": recognition.engine,
                 "matcher": decision.matcher,
                 "alternatives": [h.text for h in recognition.hypotheses],

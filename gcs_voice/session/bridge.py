@@ -327,7 +327,10 @@ class Bridge:
                    else f"voice flies again once it is switched back to {velocity_mode}")
             return self._refuse(request, f"vehicle is in {state.mode}, not {velocity_mode}: {how}")
         decided_s = time.time()  # before the mapper decides (see LinkChannel.send_setpoint)
-        mapped = self.mapper.apply(action, state)
+        amount = request.decision.amount if request.decision else None
+        mapped = self.mapper.apply(action, state, amount)
+        if mapped.refused:  # the amount would cross a limit (fence, ceiling, floor): nothing changed
+            return self._refuse(request, mapped.refused)
         # the link streams the mapper's setpoint; this one goes at once, not at the next 10 Hz tick
         setpoint = self.link.stream_now(self.mapper.setpoint, decided_s)
         sent_t = time.time()
@@ -335,9 +338,10 @@ class Bridge:
         d = request.decision
         self.bus.emit(
             "command", f"{(repr(d.phrase) + ' -> ') if d and d.phrase else ''}{action}"
+            + (f" {mapped.amount}" if mapped.amount else "")
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
-            origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
+            amount=mapped.amount or None, origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
             setpoint=None if setpoint is None else {
                 "forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
                 "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},

@@ -28,7 +28,7 @@ KINDS: dict[str, str] = {
     "heard": "what the recogniser heard: text (the best hypothesis), transcript (the engine's own words when its "
              "hypotheses are scored phrases, else empty), alternatives, engine, lang, audio_s, source, recognize_ms",
     "rejected": "no action: text, phrase (nearest), score, reason, matcher",
-    "command": "an action sent to the vehicle: action, phrase, score, origin (voice|key|script), setpoint",
+    "command": "an action sent to the vehicle: action, phrase, score, amount (3 m, 45°, to 5 m, or null), origin (voice|key|script), setpoint",
     "refused": "an action not sent, or cut short, by a safety rule: action, reason (link lost, fence, ...)",
     "flight": "arm / take-off / land / disarm / mode: what, ok, detail",
     "ready": "what the vehicle is waiting for before it can be armed (waiting_for), or the arming step taken",

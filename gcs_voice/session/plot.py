@@ -94,7 +94,8 @@ def _session_events(path: str | Path, kind: str, strict: bool = False) -> list[d
 
 def commands_from_session_log(path: str | Path) -> list[CommandMark]:
     """Commands the bridge sent, from its JSON-lines session log (events of kind ``command``)."""
-    return [CommandMark(float(event["t"]), str(event["action"]), str(event.get("phrase") or ""))
+    return [CommandMark(float(event["t"]), str(event["action"]),
+                        " ".join(filter(None, (str(event.get("phrase") or ""), str(event.get("amount") or "")))))
             for event in _session_events(path, "command", strict=True) if event.get("action")]
 
 

@@ -100,7 +100,8 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
         said = f"{command['phrase']} -> " if command.get("phrase") else ""
         how = (f"  score {command['score']:.2f}" if isinstance(command.get("score"), (int, float))
                else f"  ({command.get('origin', '?')})")
-        voice.add_row("did", Text(f"{said}{command.get('action')}{how}", style="bold cyan"))
+        amount = f" {command['amount']}" if command.get("amount") else ""   # "go_forward 3 m"
+        voice.add_row("did", Text(f"{said}{command.get('action')}{amount}{how}", style="bold cyan"))
     if thinking:
         voice.add_row("now", Text(f"thinking… (utterance ended {_clock(thinking['t'])})", style="italic yellow"))
     if not heard and not command and not thinking:

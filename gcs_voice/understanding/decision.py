@@ -5,6 +5,8 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass
 from typing import Any
 
+from gcs_voice.domain.amounts import Amount
+
 __all__ = ["Decision"]
 
 
@@ -25,10 +27,19 @@ class Decision:
     score: float = 0.0
     reason: str = ""
     matcher: str = ""
+    #: how far, when an amount was said with the command ("go forward three metres"): the motion is bounded
+    amount: Amount | None = None
+
+    @property
+    def label(self) -> str:
+        """The action as a pilot would say it back: "go_forward 3 m", "turn_left 45°", "stop"."""
+        return f"{self.action} {self.amount.label}" if self.action and self.amount else (self.action or "")
 
     @property
     def accepted(self) -> bool:
         return self.action is not None
 
     def to_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        out = asdict(self)
+        out["amount"] = self.amount.to_dict() if self.amount else None
+        return out

@@ -16,6 +16,7 @@ from pathlib import Path
 from rapidfuzz.distance import LCSseq, Levenshtein
 
 from gcs_voice.asr.base import Recognition
+from gcs_voice.domain import amounts
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.errors import GcsVoiceError
@@ -125,6 +126,10 @@ class Matcher:
                   or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
+        amount, reason = amounts.judge(recognition.transcript or recognition.text, recognition.extra,
+                                       recognition.engine, best.dictionary, best.phrase.action)
+        if reason:  # a wrong amount is a wrong action
+            return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
             action=best.phrase.action,
             text=best.text,
@@ -133,6 +138,7 @@ class Matcher:
             score=score,
             reason="" if best.rank == 0 else f"matched alternative #{best.rank + 1} '{best.text}'",
             matcher=self.name,
+            amount=amount,
         )
 
     def rank(
@@ -219,6 +225,7 @@ class Matcher:
         if limit is not None and recognition.extra.get("transcript_cut"):
             return _went_on_reason(recognition)
         heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
+        heard = amounts.split_amount(heard, best.dictionary.language).command  # the amount is judged apart
         short = len(heard.split()) <= len(best.phrase.match_key.split())
         if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
