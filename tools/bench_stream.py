@@ -15,8 +15,8 @@ SNR varies), writes the stream WAV and a truth TSV, and feeds the stream to
   segment at all (the segmenter never heard them);
 - false actions: any action during non-command speech, or during noise alone;
 - the longest deaf stretch: the longest time from the start of an utterance whose speech is at least
-  10 dB above the noise around it to the end of a later one, all such utterances in between (both
-  included) producing no segment (0 when every such utterance produced one).
+  10 dB above the noise around it to the end of a later one, both producing no segment and no utterance
+  between them producing one either (0 when every such utterance produced one).
 
     python -m tools.bench_stream                    # clean + kitchen 20/12/6 dB, 60 utterances each
     python -m tools.bench_stream --noises all       # the four real noises
@@ -262,13 +262,16 @@ def local_snr_db(speech: np.ndarray, noise: np.ndarray | None, p: Placed) -> flo
 
 
 def deaf_stretch_s(placed: list[Placed], heard: list[bool], audible: list[bool]) -> float:
-    """Longest time over which every audible utterance produced no segment (inaudible ones do not count)."""
+    """Longest time over which audible utterances produced no segment and nothing said between them did either.
+
+    A quieter utterance missed in between does not end the stretch (nor start one); one heard, however quiet,
+    does: the segmenter was listening."""
     longest, run_start = 0.0, None
     for p, h, a in zip(placed, heard, audible):
-        if not a:
-            continue
         if h:
             run_start = None
+            continue
+        if not a:
             continue
         run_start = p.voiced_start_s if run_start is None else run_start
         longest = max(longest, p.voiced_end_s - run_start)
@@ -457,8 +460,9 @@ def main(argv: list[str] | None = None) -> int:
         "A command is right when its segments carry its action and no other, wrong when any other action, missed "
         "when none; *no segment*: missed commands the segmenter never cut (no segment overlaps their speech). A "
         "false action is an action during non-command speech (words, sentences) or noise alone. *Deaf stretch*: "
-        f"the longest time over which every utterance at least {AUDIBLE_DB:g} dB above the noise around it "
-        "produced no segment (in brackets: how many utterances were that audible).",
+        f"the longest time from an utterance at least {AUDIBLE_DB:g} dB above the noise around it to a later one, "
+        "both producing no segment and nothing said between them producing one either (in brackets: how many "
+        "utterances were that audible).",
         f"Segmenter: {args.vad or 'silero'}, settings "
         f"{args.vad_settings or 'gcs_voice/audio/vad.toml'}; no stop spotter here (`recognize` is the main "
         "recogniser only; the spotter is measured in stop.md).",
