@@ -194,15 +194,15 @@ class SileroVad:
             return float(np.asarray(out).reshape(-1)[0])
         half = self.period // 2
         ages = (i % self.period, (i - half) % self.period)  # windows each copy has run since its restart
+        running = (0,) if i < half else (0, 1)  # the second copy starts half a period in
+        answering = 0 if i < half else int(ages[1] > ages[0])  # the copy that has run longer
         answer = 0.0
-        for k, age in enumerate(ages):
-            if age == 0:
+        for k in running:
+            if ages[k] == 0:
                 self.states[k] = self._zero_state()
-            if k == 1 and i < half:
-                continue  # the second copy starts half a period in
             out, h, c = self.session.run(None, {"input": x, "h": self.states[k][0], "c": self.states[k][1]})
             self.states[k] = (h, c)
-            if age == max(ages) or (k == 0 and i < half):
+            if k == answering:
                 answer = float(np.asarray(out).reshape(-1)[0])
         return answer
 
