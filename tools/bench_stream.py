@@ -8,7 +8,8 @@ speaker heard here was heard by any tuning. It mixes them over the real noises o
 noise, or ``mixed``: the four in turn, changing every ``--noise-change-s`` seconds with a 1 s crossfade)
 at a stated SNR (speech level measured over its voiced frames, noise over the whole track; with
 ``--level-spread D`` each utterance is D dB louder or quieter at random around that level, so its own
-SNR varies), writes the stream WAV and a truth TSV, and feeds the stream to
+SNR varies), writes the stream WAV and a truth TSV (and, once scored, ``*.outcomes.tsv``: per
+utterance what was heard and what acted), and feeds the stream to
 ``gcs-voice recognize --segment --json`` AS ONE FILE in a real subprocess. Then it counts, per stream:
 
 - commands right, wrong (another action), missed (no action), and of the missed those that produced no
@@ -315,6 +316,37 @@ def score(rows: list[dict], placed: list[Placed], total_s: float,
     return c
 
 
+def outcomes(rows: list[dict], placed: list[Placed]) -> list[str]:
+    """One TSV line per utterance (and per segment over noise alone): what was said, what the segments heard,
+    what acted and why not, so that a wrong or missed command can be looked at, not only counted."""
+    owner: dict[int | None, list[dict]] = {}
+    for row in rows:
+        best, overlap = None, 0.0
+        for i, p in enumerate(placed):
+            o = min(row["end_s"], p.end_s) - max(row["start_s"], p.start_s)
+            if o > overlap:
+                best, overlap = i, o
+        owner.setdefault(best, []).append(row)
+    lines = ["index\tstart_s\ttruth\toutcome\tactions\theard\treasons\tpath"]
+    for i, p in enumerate([*placed, None]):
+        got = owner.get(None if p is None else i, [])
+        if p is None and not got:
+            continue
+        acts = [r["action"] for r in got if r.get("action")]
+        truth = "noise" if p is None else (p.clip.action or "none")
+        if p is None or p.clip.action is None:
+            outcome = "false action" if acts else "ignored"
+        else:
+            outcome = "wrong" if any(a != p.clip.action for a in acts) else "right" if acts else \
+                ("missed" if got else "no segment")
+        heard = " | ".join(r.get("transcript") or r.get("text") or "" for r in got)
+        reasons = " | ".join(r.get("reason", "") for r in got if r.get("reason"))
+        lines.append("\t".join([str(i) if p else "-", f"{p.start_s:.2f}" if p else
+                                 ",".join(f"{r['start_s']:.2f}" for r in got), truth, outcome, ",".join(acts),
+                                 heard, reasons, str(p.clip.path) if p else ""]))
+    return lines
+
+
 def pct(n: int, d: int) -> str:
     return f"{100 * n / d:.1f} % ({n}/{d})" if d else "-"
 
@@ -430,6 +462,7 @@ def main(argv: list[str] | None = None) -> int:
         write_truth(wav.with_suffix(".tsv"), placed)
         rows, shown_cmd, seconds = recognize(wav, extra, work / "cache")
         c = score(rows, placed, x.size / RATE, audible)
+        wav.with_suffix(".outcomes.tsv").write_text("\n".join(outcomes(rows, placed)) + "\n", encoding="utf-8")
         noise_name = {"none": "none", "mixed": "all four in turn"}.get(spec.noise, NOISE_FILES.get(spec.noise, ""))
         line = (f"| {noise_name} | {pauses_s[0]:g}-{pauses_s[1]:g} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
                 f"{'±' + format(spec.spread_db, 'g') if spec.spread_db else '0'} | "
