@@ -75,6 +75,22 @@ def test_arducopter_modes_and_arming(arducopter: Replay) -> None:
     assert (arducopter.final.system_id, arducopter.final.component_id) == (1, 1)
 
 
+def test_arducopter_battery_is_read_and_drains_in_flight(arducopter: Replay) -> None:
+    """SYS_STATUS.battery_remaining (ARDUCOPTER.md: "battery_remaining 96") is the state's battery; the first
+    SYS_STATUS of a booting ArduCopter says -1 (not known), which is None, not -1 %."""
+    at = arducopter.at
+    assert at[43.0].battery_pct is not None and 0 < at[43.0].battery_pct <= 100
+    assert arducopter.final.battery_pct is not None and arducopter.final.battery_pct < at[43.0].battery_pct
+    tracker = VehicleStateTracker()
+    mav = mavutil.mavlink.MAVLink(None, srcSystem=1, srcComponent=1)
+    hb = mav.heartbeat_encode(2, 3, 0, 0, 0)
+    tracker.update(hb, 0.0)
+    for remaining, expected in ((-1, None), (80, 80), (120, 80), (-1, None)):
+        msg = mav.sys_status_encode(0, 0, 0, 0, 12000, 0, remaining, 0, 0, 0, 0, 0, 0)
+        tracker.update(msg, 1.0)
+        assert tracker.state.battery_pct == expected, remaining
+
+
 def test_arducopter_position_and_heading(arducopter: Replay) -> None:
     at = arducopter.at
     assert at[50.5].height_m == pytest.approx(2.0, abs=0.2)  # takeoff to 2 m done at 48.6

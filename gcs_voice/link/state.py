@@ -103,6 +103,9 @@ class VehicleState:
     sensors_present: int | None = None
     sensors_enabled: int | None = None
     sensors_health: int | None = None
+    #: battery charge left, percent, as SYS_STATUS / BATTERY_STATUS say it (None: not heard or the vehicle does not
+    #: know: -1 on the wire)
+    battery_pct: int | None = None
     #: EKF_STATUS_REPORT.flags (ArduPilot; None: not heard)
     ekf_flags: int | None = None
     #: the last pre-arm complaint the vehicle made ("PreArm: Need Position Estimate", "Arm: ...",
@@ -146,6 +149,14 @@ def _finite(*values: Any) -> bool:
         return all(math.isfinite(float(v)) for v in values)
     except (TypeError, ValueError):
         return False
+
+
+def _battery_pct(remaining: Any, before: int | None) -> int | None:
+    """A battery_remaining field as a percent: -1 (the vehicle does not know) is None, nonsense keeps what was known."""
+    value = int(remaining)
+    if value == -1:
+        return None
+    return value if 0 <= value <= 100 else before
 
 
 @dataclass
@@ -239,7 +250,12 @@ class VehicleStateTracker:
     def _sys_status(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, sensors_present=int(msg.onboard_control_sensors_present),
                              sensors_enabled=int(msg.onboard_control_sensors_enabled),
-                             sensors_health=int(msg.onboard_control_sensors_health))
+                             sensors_health=int(msg.onboard_control_sensors_health),
+                             battery_pct=_battery_pct(msg.battery_remaining, self.state.battery_pct))
+
+    def _battery_status(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
+        if int(getattr(msg, "id", 0)) == 0:  # the first battery is the flight battery (both autopilots)
+            self.state = replace(self.state, battery_pct=_battery_pct(msg.battery_remaining, self.state.battery_pct))
 
     def _ekf_status_report(self, msg: mavlink.MAVLink_message, now_s: float) -> None:
         self.state = replace(self.state, ekf_flags=int(msg.flags))

@@ -93,7 +93,7 @@ def status_of(state: VehicleState | None, action: str | None) -> dict[str, Any]:
     heading = round_deg(state.heading_deg, 0) if state.heading_deg is not None else None  # 359.7 is north: 0
     return {"link": link, "autopilot": state.autopilot, "mode": state.mode, "armed": state.armed,
             "alt_m": state.height_m, "heading_deg": heading, "speed_m_s": speed, "action": action,
-            "ready": ready}
+            "ready": ready, "battery_pct": state.battery_pct}
 
 
 def _on_ground(state: VehicleState) -> bool:

@@ -82,6 +82,7 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
                     Text("ARMED", style="bold red") if status.get("armed") else Text("disarmed"))
     vehicle.add_row("altitude", _fmt(status.get("alt_m"), " m", 2), "heading", _fmt(status.get("heading_deg"), " deg", 0))
     vehicle.add_row("speed", _fmt(status.get("speed_m_s"), " m/s", 2), "action", _fmt(status.get("action")))
+    vehicle.add_row("battery", _fmt(status.get("battery_pct"), " %", 0), "", "")
     if status.get("ready"):  # disarmed: what the vehicle still waits for ("waiting for: position (EKF)")
         style = "green" if status["ready"] == "ready to arm" else "yellow"
         vehicle.add_row("vehicle", Text(str(status["ready"]), style=style), "", "")
