@@ -15,8 +15,9 @@ recognition and the time from the end of the audio to the result in
 ``gcs_voice/understanding/thresholds.toml``): on clean dev speech, non-command words and sentences acted on
 must stay within HALF their 2 % target (a setting that only just fits dev would not hold on test) and wrong
 actions within 1 %, there and one grid step looser in any threshold; among those, the best
-"right - 3 x wrong - 2 x acted on non-commands" over clean, kitchen 20 dB and kitchen 12 dB wins (at 12 dB
-no setting meets the targets on dev).
+"right - 3 x wrong - 2 x acted on non-commands" over clean, kitchen 20 dB and each real noise at 12 dB wins (at
+12 dB no setting meets the targets on dev). ``gate`` shows what a floor on Whisper's confidence in its own
+transcript would cost and save, on dev and test.
 ``report`` writes the tables with the count behind every percentage, and ``frontier`` (also a section of the
 report) the most any threshold of the rule could keep within the targets, chosen on the test split itself: an upper
 bound that tells whether better thresholds or a better model is what is missing.
@@ -221,8 +222,9 @@ TUNED = {"whisper-score": ("evidence.whisper-score", {
     "min_margin": [round(float(x), 2) for x in np.arange(-2.0, 0.01, 0.1)],
     "min_class_gap": [0.0, 0.2, 0.4, 0.6, 0.8, 1.0, 1.2, 1.5, 2.0],
 })}
-#: conditions whose dev counts constrain the choice (kitchen6 is reported, without a target)
-TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12")
+#: conditions whose dev counts constrain the choice (kitchen6 is reported, without a target): clean, kitchen at
+#: 20 and 12 dB, and the other three real noises at 12 dB (issue 30: a room is not only a kitchen)
+TUNE_CONDITIONS = ("clean", "kitchen20", "kitchen12", "tap12", "bike12", "miaow12")
 
 
 def _with_thresholds(table: str, values: dict[str, float], directory: Path, name: str,
@@ -507,6 +509,43 @@ def guard(write: bool, engine: str = "whisper-score") -> str:
     return "\n".join(lines)
 
 
+# -- how sure Whisper was of what it wrote ---------------------------------------------------------------
+#: candidate values of ``[evidence.whisper-score] min_free_logprob`` (the shipped one is in thresholds.toml)
+GATE_GRID = [-5.0, -3.0, -2.5, -2.2, -2.0, -1.8]
+GATE_CONDITIONS = ("clean", "kitchen20", "kitchen12", "tap12", "bike12", "miaow12")
+
+
+def gate(engine: str = "whisper-score") -> str:
+    """What a stricter floor on Whisper's confidence in its own transcript would do, dev and test side by side.
+
+    In noise Whisper writes a word it barely heard ("What?", mean token log-probability -4.9, for a "left" at
+    kitchen 12 dB) and a phrase scored above that word acts. A floor on that confidence rejects such cases; this
+    shows what it costs in commands right against the wrong actions it saves, on both splits (not a tuning:
+    the shipped value is chosen by hand in thresholds.toml, with this table as its reason)."""
+    cache = load_cache(engine)
+    split = {s: load_recordings(split=s) for s in ("dev", "test")}
+    conditions = [c for c in GATE_CONDITIONS if any(_key(r, c) in cache for r in split["dev"])]
+    shipped = load_thresholds().get("evidence", {}).get(engine, {}).get("min_free_logprob")
+    lines = ["## A floor on Whisper's confidence in its own transcript", "",
+             "`[evidence.whisper-score] min_free_logprob`: Whisper's own transcript, teacher-forced, must have at least",
+             "this mean token log-probability, or nothing acts. Each cell: commands right, wrong actions, non-commands",
+             f"acted on, summed over {', '.join(conditions)} (per split: the number of commands in brackets).",
+             f"Shipped: {shipped}. Command: `python -m tools.bench_real gate`.", "",
+             "| min_free_logprob | dev right | dev wrong | dev non-commands acted on | test right | test wrong | "
+             "test non-commands acted on |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    with tempfile.TemporaryDirectory() as tmp:
+        for value in GATE_GRID:
+            matcher = get_matcher(MATCHER, thresholds_path=_with_thresholds(
+                f"evidence.{engine}", {"min_free_logprob": value}, Path(tmp), str(value)))
+            cells = []
+            for recs in split.values():
+                per = [count(recs, c, cache, matcher) for c in conditions]
+                cells += [f"{sum(c.right for c in per)} ({sum(c.commands for c in per)})", str(sum(c.wrong for c in per)),
+                          f"{sum(c.others_acted for c in per)} ({sum(c.others for c in per)})"]
+            lines.append(f"| {value}{' (shipped)' if value == shipped else ''} | " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
 # -- report -------------------------------------------------------------------------------------------
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
@@ -539,7 +578,7 @@ def report(engines: list[str]) -> str:
                   " (the machine was loaded by other work; `python -m tools.bench_real timing` measures it idle).", "",
                   "Settings tried and not taken, on the dev split: [real_variants.md](real_variants.md).", ""]
         if engine in TUNED:
-            lines += [frontier(engine), "", guard(False, engine), ""]
+            lines += [frontier(engine), "", guard(False, engine), "", gate(engine), ""]
     return "\n".join(lines) + "\n"
 
 
@@ -769,6 +808,7 @@ def main(argv: list[str] | None = None) -> int:
     tun.add_argument("--write", action="store_true", help="write the chosen value into thresholds.toml")
     rep = sub.add_parser("report", help="write docs/bench/real.md from the caches")
     rep.add_argument("--engines", default=",".join(ENGINES))
+    sub.add_parser("gate", help="what a floor on Whisper's confidence in its own transcript would cost and save")
     grd = sub.add_parser("guard", help="what the weak-match guard costs on real English, and its value")
     grd.add_argument("--write", action="store_true", help="write the chosen min_shared into thresholds.toml")
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
@@ -823,6 +863,8 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.stage == "guard":
         print(guard(args.write))
+    if args.stage == "gate":
+        print(gate())
         return 0
     if args.stage == "stays":
         print(stays())

@@ -281,6 +281,18 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
         command = next((i for i in order if forms.phrases[i].action != NOT_A_COMMAND), None)
         if command is not None:
             chosen[-1] = command
+    # At least one rival is scored: when every form chosen says one class ("Black." for a "left" said in a
+    # kitchen: "back", "go back", "move back", "backwards"), no other class was judged, the class gap read as
+    # infinite and the weakest evidence acted (python -m tools.bench_stream --room --split dev: go_back for
+    # "left", twice). The best-ranked form of another class (or a not-command) takes the last place that is
+    # not the command Whisper wrote.
+    classes = {forms.phrases[i].action for i in chosen}
+    if len(classes) == 1 and len(chosen) > 1:
+        rival = next((i for i in order if forms.phrases[i].action not in classes), None)
+        if rival is not None:
+            keep = set(exact[:1])  # the command Whisper wrote word for word stays
+            place = max(k for k in range(len(chosen)) if chosen[k] not in keep or k == 0)
+            chosen[place] = rival
     return chosen
 
 
