@@ -235,6 +235,7 @@ class Counts:
     commands: int = 0
     right: int = 0
     wrong: int = 0
+    wrong_stop: int = 0  # of the wrong: a stop where a motion was said (the vehicle held; it did not go astray)
     missed: int = 0
     unsegmented: int = 0  # missed commands that produced no segment at all
     others: int = 0  # non-command utterances
@@ -307,6 +308,7 @@ def score(rows: list[dict], placed: list[Placed], total_s: float,
             c.commands += 1
             if any(a != p.clip.action for a in got):
                 c.wrong += 1
+                c.wrong_stop += all(a in (p.clip.action, "stop") for a in got)
             elif got:
                 c.right += 1
             else:
@@ -467,7 +469,7 @@ def main(argv: list[str] | None = None) -> int:
         line = (f"| {noise_name} | {pauses_s[0]:g}-{pauses_s[1]:g} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
                 f"{'±' + format(spec.spread_db, 'g') if spec.spread_db else '0'} | "
                 f"{c.minutes:.1f} | {c.segments} / {len(placed)} | {pct(c.right, c.commands)} | "
-                f"{c.wrong} | {c.missed} | {c.unsegmented} | {c.false_speech} / {c.others} | {c.false_noise} | "
+                f"{c.wrong} ({c.wrong_stop}) | {c.missed} | {c.unsegmented} | {c.false_speech} / {c.others} | {c.false_noise} | "
                 f"{(c.false_speech + c.false_noise) / c.minutes * 5:.1f} | {c.right / c.minutes:.1f} | "
                 f"{c.deaf_s:.1f} ({sum(audible)}) | {seconds:.0f} |")
         print(line, flush=True)
@@ -490,7 +492,8 @@ def main(argv: list[str] | None = None) -> int:
         + "; the real noise under the whole stream at the stated SNR below that level (all four in turn: each "
         f"for {args.noise_change_s:g} s, 1 s crossfades). The stream WAV is fed as one file to "
         f"`{shown_cmd.rsplit(' ', 1)[0]} STREAM.wav`.",
-        "A command is right when its segments carry its action and no other, wrong when any other action, missed "
+        "A command is right when its segments carry its action and no other, wrong when any other action (in "
+        "brackets: of them, a stop where a motion was said: the vehicle held instead of moving), missed "
         "when none; *no segment*: missed commands the segmenter never cut (no segment overlaps their speech). A "
         "false action is an action during non-command speech (words, sentences) or noise alone. *Deaf stretch*: "
         f"the longest time from an utterance at least {AUDIBLE_DB:g} dB above the noise around it to a later one, "
@@ -501,7 +504,7 @@ def main(argv: list[str] | None = None) -> int:
         "recogniser only; the spotter is measured in stop.md).",
         f"Load average at the end of the run: {os.getloadavg()[0]:.1f} (2 cores).",
         "",
-        "| noise | pauses s | SNR dB | level spread dB | minutes | segments / utterances | commands right | wrong | missed | "
+        "| noise | pauses s | SNR dB | level spread dB | minutes | segments / utterances | commands right | wrong (a stop) | missed | "
         "no segment | false actions on speech / non-command utterances | false actions on noise alone | "
         "false actions per 5 min | commands right per min | longest deaf stretch s (audible) | run s |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
