@@ -310,3 +310,33 @@ def test_the_networks_memory_is_bounded(real_speech_dir):
     settled = int((before + 2 * memory_s * RATE) / SILERO_WINDOW) + 2
     assert not np.array_equal(probs[0][:settled], probs[1][:settled])  # the streams did differ
     np.testing.assert_array_equal(probs[0][settled:], probs[1][settled:])
+
+
+def test_the_stream_benchmark_counts_each_outcome_as_said() -> None:
+    """tools.bench_stream's counts: a command right, one taken for another motion (wrong), one taken for a stop (wrong,
+    and counted as a stop: the vehicle held), one never segmented, a sentence acted on, an action on noise alone;
+    and its outcome file names each of them."""
+    from pathlib import Path
+
+    from tools.bench_stream import Placed, outcomes, score
+    from tools.real_speech import Recording
+
+    def rec(action, kind="command"):
+        return Recording(Path(f"/x/{action}.wav"), action, str(action), "s", "test", kind, "en")
+
+    placed = [Placed(rec("go_left"), 1.0, 2.0, 1.2, 1.8), Placed(rec("go_right"), 4.0, 5.0, 4.2, 4.8),
+              Placed(rec("up"), 7.0, 8.0, 7.2, 7.8), Placed(rec("down"), 10.0, 11.0, 10.2, 10.8),
+              Placed(rec(None, "sentence"), 13.0, 15.0, 13.2, 14.8)]
+    rows = [{"start_s": 1.1, "end_s": 1.9, "action": "go_left", "transcript": "Left"},
+            {"start_s": 4.1, "end_s": 4.9, "action": "go_left", "transcript": "Racked"},
+            {"start_s": 7.1, "end_s": 7.9, "action": "stop", "transcript": "Stop", "reason": ""},
+            {"start_s": 13.1, "end_s": 14.9, "action": "up", "transcript": "Up we go"},
+            {"start_s": 17.0, "end_s": 17.5, "action": "go_right", "transcript": "Alright."}]
+    c = score(rows, placed, 20.0)
+    assert (c.commands, c.right, c.wrong, c.wrong_stop, c.missed, c.unsegmented) == (4, 1, 2, 1, 1, 1)
+    assert (c.others, c.false_speech, c.false_noise) == (1, 1, 1)
+    lines = [line.split("\t") for line in outcomes(rows, placed)[1:]]
+    assert [(line[2], line[3]) for line in lines] == [
+        ("go_left", "right"), ("go_right", "wrong"), ("up", "wrong"), ("down", "no segment"), ("none", "false action"),
+        ("noise", "false action")]
+    assert lines[1][5] == "Racked" and lines[-1][5] == "Alright."
