@@ -280,6 +280,16 @@ def deaf_stretch_s(placed: list[Placed], heard: list[bool], audible: list[bool])
     return longest
 
 
+def owner_of(row: dict, placed: list[Placed]) -> int | None:
+    """The utterance a segment overlaps most (None: it lies on noise alone)."""
+    best, overlap = None, 0.0
+    for i, p in enumerate(placed):
+        o = min(row["end_s"], p.end_s) - max(row["start_s"], p.start_s)
+        if o > overlap:
+            best, overlap = i, o
+    return best
+
+
 def score(rows: list[dict], placed: list[Placed], total_s: float,
           audible: list[bool] | None = None) -> Counts:
     """Give each segment to the utterance it overlaps most (none: noise alone) and count the outcomes.
@@ -288,11 +298,7 @@ def score(rows: list[dict], placed: list[Placed], total_s: float,
     c = Counts(segments=len(rows), minutes=total_s / 60)
     actions: dict[int, list[str]] = {i: [] for i in range(len(placed))}
     for row in rows:
-        best, overlap = None, 0.0
-        for i, p in enumerate(placed):
-            o = min(row["end_s"], p.end_s) - max(row["start_s"], p.start_s)
-            if o > overlap:
-                best, overlap = i, o
+        best = owner_of(row, placed)
         if row.get("action"):
             if best is None:
                 c.false_noise += 1
@@ -323,12 +329,7 @@ def outcomes(rows: list[dict], placed: list[Placed]) -> list[str]:
     what acted and why not, so that a wrong or missed command can be looked at, not only counted."""
     owner: dict[int | None, list[dict]] = {}
     for row in rows:
-        best, overlap = None, 0.0
-        for i, p in enumerate(placed):
-            o = min(row["end_s"], p.end_s) - max(row["start_s"], p.start_s)
-            if o > overlap:
-                best, overlap = i, o
-        owner.setdefault(best, []).append(row)
+        owner.setdefault(owner_of(row, placed), []).append(row)
     lines = ["index\tstart_s\ttruth\toutcome\tactions\theard\treasons\tpath"]
     for i, p in enumerate([*placed, None]):
         got = owner.get(None if p is None else i, [])
