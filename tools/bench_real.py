@@ -518,8 +518,8 @@ GATE_CONDITIONS = ("clean", "kitchen20", "kitchen12", "tap12", "bike12", "miaow1
 def gate(engine: str = "whisper-score") -> str:
     """What a stricter floor on Whisper's confidence in its own transcript would do, dev and test side by side.
 
-    In noise Whisper writes a word it barely heard ("What?", mean token log-probability -4.9, for a "left" at
-    kitchen 12 dB) and a phrase scored above that word acts. A floor on that confidence rejects such cases; this
+    In noise Whisper writes a word it barely heard (a low mean token log-probability of its own transcript) and a
+    phrase scored above that word acts. A floor on that confidence rejects such cases; this
     shows what it costs in commands right against the wrong actions it saves, on both splits (not a tuning:
     the shipped value is chosen by hand in thresholds.toml, with this table as its reason)."""
     cache = load_cache(engine)

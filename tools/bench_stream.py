@@ -340,8 +340,10 @@ def outcomes(rows: list[dict], placed: list[Placed]) -> list[str]:
         if p is None or p.clip.action is None:
             outcome = "false action" if acts else "ignored"
         else:
+            # "no segment" as score() counts it: no segment overlaps the utterance's speech at all
+            cut = any(overlaps(r["start_s"], r["end_s"], p.voiced_start_s, p.voiced_end_s) for r in rows)
             outcome = "wrong" if any(a != p.clip.action for a in acts) else "right" if acts else \
-                ("missed" if got else "no segment")
+                ("missed" if cut else "no segment")
         heard = " | ".join(r.get("transcript") or r.get("text") or "" for r in got)
         reasons = " | ".join(r.get("reason", "") for r in got if r.get("reason"))
         lines.append("\t".join([str(i) if p else "-", f"{p.start_s:.2f}" if p else

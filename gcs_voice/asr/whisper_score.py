@@ -290,9 +290,8 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     if len(classes) == 1 and len(chosen) > 1:
         rival = next((i for i in order if forms.phrases[i].action not in classes), None)
         if rival is not None:
-            keep = set(exact[:1])  # the command Whisper wrote word for word stays
-            place = max(k for k in range(len(chosen)) if chosen[k] not in keep or k == 0)
-            chosen[place] = rival
+            # the last place, unless it holds the command Whisper wrote word for word: that one stays
+            chosen[-2 if exact and chosen[-1] == exact[0] else -1] = rival
     return chosen
 
 
