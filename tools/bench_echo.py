@@ -7,10 +7,13 @@ as a speaker beside the microphone returns them. For every real held-out "stop" 
 (``tools.real_speech.load_recordings(split="test")``) that the spotter hears alone, this mixes the
 bridge's longest decision cue (the doing tone, then espeak-ng's "going forward, turning right"; the
 pilot's stop starting ``--stop-at`` seconds into it) at several levels of its voiced parts relative to
-the stop's voiced parts, delayed as ``--delay-ms``, and spots the mix as the spotter's stream would
-take it (from the start of the bridge's sound). No noise, no room reverberation: the direct path only.
+the stop's voiced parts, delayed as ``--delay-ms`` and reverberated by a statistical room (``--rt60``,
+``--drr-db``; ``--rt60 0``: the direct path only), and spots the mix as the spotter's stream would take it
+(from the start of the bridge's sound): the raw microphone, and the microphone less the echo canceller's
+estimate of the cue (``gcs_voice.audio.echo_cancel``), cold and after one earlier cue. No noise.
 
-    python -m tools.bench_echo --out docs/bench/echo.md
+    python -m tools.bench_echo --split dev --cancel 'min_step=0.05,min_step=0.2,min_step=0.35'   # choose
+    python -m tools.bench_echo --out docs/bench/echo.md                                          # report
 """
 
 from __future__ import annotations
@@ -31,8 +34,22 @@ def voiced_dbfs(x: np.ndarray) -> float:
     return float(20 * np.log10(voiced_level(x / 32768.0)[0] + 1e-12))
 
 
+def room_response(rt60_s: float, direct_to_reverb_db: float, seed: int = 0, length_s: float = 0.5) -> np.ndarray:
+    """A speaker-to-microphone impulse response: the direct path (1.0 at 0), then a diffuse tail of
+    exponentially decaying noise (-60 dB at ``rt60_s``) from 2 ms on, ``direct_to_reverb_db`` below the direct
+    path in energy. None of the shape is tuned: it is the textbook statistical room (Schroeder)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(length_s * RATE)) / RATE
+    tail = rng.standard_normal(t.size) * np.exp(-6.9 * t / rt60_s)
+    tail[: int(0.002 * RATE)] = 0.0
+    tail *= 10 ** (-direct_to_reverb_db / 20) / np.sqrt(np.sum(tail ** 2))
+    tail[0] += 1.0
+    return tail
+
+
 def main(argv: list[str] | None = None) -> int:
     from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.audio.echo_cancel import EchoCanceller
     from gcs_voice.audio.sounds import Speech, tone
     from gcs_voice.audio.sources import read_wav
     from gcs_voice.session.feedback import load_sound_settings
@@ -41,54 +58,94 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--levels", default="-20,-10,-6,0,6", help="the bridge's voice relative to the pilot's, dB")
     parser.add_argument("--delay-ms", type=float, default=60.0, help="the echo's delay (default 60 ms)")
     parser.add_argument("--stop-at", type=float, default=0.5, help="seconds into the bridge's sound the stop starts")
+    parser.add_argument("--rt60", type=float, default=0.3,
+                        help="the room's reverberation time, s (default 0.3: a furnished room; 0: the direct path only)")
+    parser.add_argument("--drr-db", type=float, default=6.0,
+                        help="direct-to-reverberant energy of the speaker-to-microphone path (default 6 dB: side by side)")
+    parser.add_argument("--split", choices=("dev", "test"), default="test",
+                        help="whose stops: dev (choose the canceller's settings on) or test (report)")
+    parser.add_argument("--cancel", default="", help="canceller settings to compare, KEY=VALUE[;KEY=VALUE...] "
+                        "separated by commas (default: the shipped [echo] of sounds.toml)")
     parser.add_argument("--speech", type=Path, default=SHARED / "speech")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     args = parser.parse_args(argv)
 
     spotter = load_stop_spotter(["en"])
     s = load_sound_settings()
-    words = "going forward, turning right"
-    voice = np.frombuffer(tone(s.tones["doing"], s.amplitude, s.fade_s) + Speech("en-us", s.speed_wpm).say(words),
-                          "<i2").astype(np.float64)
-    stops = [(r.path.name, np.frombuffer(read_wav(r.path), "<i2").astype(np.float64))
-             for r in load_recordings(args.speech, split="test") if r.action == "stop"]
-    alone = [x for _name, x in stops if spotter.spot(x.astype("<i2").tobytes()).fired]
-    levels = [float(v) for v in args.levels.split(",")]
+    settings = ([dict((k, float(v)) for k, v in (kv.split("=") for kv in group.split(";"))) for group in args.cancel.split(",")]
+                if args.cancel else [s.echo_cancel or {}])
+
+    def cue(words: str) -> np.ndarray:
+        return np.frombuffer(tone(s.tones["doing"], s.amplitude, s.fade_s) + Speech("en-us", s.speed_wpm).say(words),
+                             "<i2").astype(np.float64)
+
+    words, earlier = "going forward, turning right", "going left"
+    voice, warm_voice = cue(words), cue(earlier)
+    response = room_response(args.rt60, args.drr_db) if args.rt60 > 0 else np.ones(1)
     delay = int(args.delay_ms / 1000 * RATE)
+
+    def room(y: np.ndarray) -> np.ndarray:
+        """What the microphone picks up of what the speaker plays: late, reverberated."""
+        return np.concatenate([np.zeros(delay), np.convolve(y, response)])
+
+    def spotted(x: np.ndarray) -> bool:
+        return spotter.spot(np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()).fired
+
+    stops = [(r.path.name, np.frombuffer(read_wav(r.path), "<i2").astype(np.float64))
+             for r in load_recordings(args.speech, split=args.split) if r.action == "stop"]
+    alone = [x for _name, x in stops if spotted(x)]
+    levels = [float(v) for v in args.levels.split(",")]
+    labels = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
+                                   f" ({how})" for c in settings for how in ("cold", "warm")]
     rows = []
     for level in levels:
-        hits = 0
+        hits = [0] * len(labels)
         for x in alone:
             gain = 10 ** ((voiced_dbfs(x) - voiced_dbfs(voice) + level) / 20)
             at = int(args.stop_at * RATE)
-            n = max(at + x.size, delay + voice.size) + RATE // 2
-            mix = np.zeros(n)
-            mix[delay:delay + voice.size] += voice * gain
-            mix[at:at + x.size] += x
-            hits += spotter.spot(np.clip(mix, -32768, 32767).astype("<i2").tobytes()).fired
-        rows.append(f"| {level:+g} dB | {hits}/{len(alone)} |")
-        print(rows[-1])
+            echo = room(voice * gain)
+            n = max(at + x.size, echo.size) + RATE // 2
+            mic, reference = np.zeros(n), np.zeros(n)
+            mic[:echo.size] += echo
+            mic[at:at + x.size] += x
+            reference[:voice.size] = voice * gain
+            hits[0] += spotted(mic)
+            for i, c in enumerate(settings):
+                for j, warm in enumerate((False, True)):
+                    canceller = EchoCanceller(**c)
+                    if warm:  # the bridge said something earlier in the session: the filter has heard the room
+                        e = room(warm_voice * gain)
+                        m, r = np.zeros(e.size + RATE // 2), np.zeros(e.size + RATE // 2)
+                        m[:e.size], r[:warm_voice.size] = e, warm_voice * gain
+                        canceller.process(m, r)
+                        canceller.drop_pending()  # the cue is a clip of its own, not the earlier one's continuation
+                    hits[1 + 2 * i + j] += spotted(canceller.process(mic, reference))
+        rows.append(f"| {level:+g} dB | " + " | ".join(f"{h}/{len(alone)}" for h in hits) + " |")
+        print(rows[-1], flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
+    command = (f"python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
+               f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
+               + (f" --cancel '{args.cancel}'" if args.cancel else "") + (f" --out {args.out}" if args.out else ""))
+    path = (f"reverberated by a statistical room (RT60 {args.rt60:g} s, direct-to-reverberant {args.drr_db:g} dB, "
+            "`room_response` in the tool)" if args.rt60 > 0 else "the direct path only, no room")
     report = "\n".join([
         "# A stop said over the bridge's own voice",
         "",
-        f"Command: `python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} "
-        f"--stop-at {args.stop_at:g}" + (f" --out {args.out}" if args.out else "") + "`",
+        f"Command: `{command}`",
         "",
-        f"Corpus: the real \"stop\" recordings of the held-out test speakers of `{corpus}` that the stop spotter "
-        f"hears alone ({len(alone)} of {len(stops)}). Each is mixed with the bridge's cue for a decision (the doing "
-        f"tone, then espeak-ng saying \"{words}\", {voice.size / RATE:.1f} s), the stop starting {args.stop_at:g} s "
-        f"into it, the cue {args.delay_ms:g} ms late, at a level of its voiced parts relative to the stop's; the "
-        "spotter decodes the mix from the start of the cue, as its stream does while the microphone is deaf. "
-        "Direct path only: no room, no noise.",
+        f"Corpus: the real \"stop\" recordings of the {'held-out test' if args.split == 'test' else 'dev'} speakers of "
+        f"`{corpus}` that the stop spotter hears alone ({len(alone)} of {len(stops)}). Each is mixed with the bridge's "
+        f"cue for a decision (the doing tone, then espeak-ng saying \"{words}\", {voice.size / RATE:.1f} s), the stop "
+        f"starting {args.stop_at:g} s into it; the cue reaches the microphone {args.delay_ms:g} ms late, {path}, at a "
+        "level of its voiced parts relative to the stop's. No noise. The spotter decodes the mix from the start of "
+        "the cue, as its stream does while the microphone is deaf: the raw microphone, or the microphone less the "
+        "echo canceller's estimate of the cue (gcs_voice/audio/echo_cancel.py, given what was played), from a "
+        f"fresh filter (cold: the session's first cue) or one that has heard one earlier cue (\"{earlier}\", warm: "
+        "any later cue).",
         "",
-        "| the bridge's voice vs the pilot's | stops still spotted |",
-        "| --- | --- |",
+        "| the bridge's voice vs the pilot's | " + " | ".join(labels) + " |",
+        "| --- | " + " | ".join("---" for _ in labels) + " |",
         *rows,
-        "",
-        "The bridge does not subtract what it plays (no echo canceller yet): the spotter hears the raw microphone.",
-        "While the bridge speaks the segmenter is deaf, so a stop the spotter misses then is not heard at all (the",
-        "main recogniser does not get it): the pilot says it again after the cue.",
         "",
     ])
     print(report)

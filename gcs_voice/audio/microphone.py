@@ -7,8 +7,9 @@ its hangover ran out), which is where latency is counted from.
 
 The bridge never hears itself (``deaf``, an ``gcs_voice.audio.speaker.EchoGate``): while its own sound may
 be in the microphone, the segmenter is fed silence, so that sound never becomes an utterance, and the
-speech listener (the stop spotter) is fed the microphone itself, so a "stop" said over the bridge's voice
-still stops. That listener hears one stream at a time: the segmenter's speech, or the deaf time's audio.
+speech listener (the stop spotter) is fed the microphone itself, less the echo of what the bridge played
+(``clean``, a ``gcs_voice.audio.echo_cancel.PlayedEcho``), so a "stop" said over the bridge's voice still
+stops. That listener hears one stream at a time: the segmenter's speech, or the deaf time's audio.
 """
 
 from __future__ import annotations
@@ -44,14 +45,16 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                           on_speech: Callable[[bytes | None], None] | None = None,
                           on_tentative: Callable[[bytes], None] | None = None,
                           chunks: Iterable[AudioChunk] | None = None,
-                          deaf: Callable[[float, float], bool] | None = None) -> Iterator[tuple[bytes, float]]:
+                          deaf: Callable[[float, float], bool] | None = None,
+                          clean: Callable[[float, bytes], bytes] | None = None) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
     ``on_speech`` hears each utterance's audio while it is spoken; ``on_tentative`` gets an utterance's
     PCM as soon as it is final if no speech follows (see ``segment_utterances``). ``chunks`` replaces the
     microphone (``gcs_voice.audio.sources.paced_chunks``: a recording heard as if spoken now).
-    ``deaf(from_t, to_t)`` says whether audio captured then (UNIX times) may be the bridge's own sound.
+    ``deaf(from_t, to_t)`` says whether audio captured then (UNIX times) may be the bridge's own sound;
+    ``clean(start_t, pcm)`` takes the bridge's own sound out of what the listener hears while deaf.
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
@@ -75,7 +78,7 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                     on_speech(None)  # the deaf time's audio ends: the listener decides on it
                 if deaf_now[0]:
                     if on_speech is not None:
-                        on_speech(chunk.pcm)
+                        on_speech(clean(start_t, chunk.pcm) if clean is not None else chunk.pcm)
                     chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 

@@ -6,7 +6,7 @@ the room), and ``gcs_voice.audio.microphone`` feeds the segmenter silence for th
 spotter still hears everything: half-duplex for commands, full-duplex for "stop".
 
 ``EchoRoom`` is the speaker and the microphone of a ``--listen-wav`` session made honest: what a player
-plays into it is added, attenuated and delayed, to the recording at the moment it is played, exactly as
+plays into it is added, attenuated, delayed and (given a room's impulse response) reverberated, to the recording at the moment it is played, exactly as
 a microphone beside the speaker would pick it up. Every player blocks for the sound's length, as a
 real speaker takes that long.
 """
@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import threading
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from typing import Protocol
 
 import numpy as np
@@ -33,25 +33,49 @@ def pcm_seconds(pcm: bytes) -> float:
 
 
 class Player(Protocol):
-    """Plays 16 kHz mono s16le PCM and returns when it has been played."""
+    """Plays 16 kHz mono s16le PCM and returns when it has been played; calls ``started`` with the UNIX time
+    its first sample left, as near as it knows (what the echo canceller aligns its reference by)."""
 
     name: str
 
-    def play(self, pcm: bytes) -> None: ...
+    def play(self, pcm: bytes, started: Callable[[float], None] | None = None) -> None: ...
 
 
 class EchoGate:
-    """When the microphone may be hearing the bridge's own sound (UNIX times); thread-safe."""
+    """When the microphone may be hearing the bridge's own sound (UNIX times), and what that sound was;
+    thread-safe."""
 
     def __init__(self, tail_s: float) -> None:
         self.tail_s = tail_s
         self._spans: list[tuple[float, float]] = []
+        #: the sounds themselves, (start UNIX time, float samples): the echo canceller's reference
+        self._sounds: list[tuple[float, np.ndarray]] = []
         self._lock = threading.Lock()
 
     def hold(self, start_t: float, duration_s: float) -> None:
         """A sound starts at ``start_t`` (call before it does) and lasts ``duration_s``."""
         with self._lock:
             self._spans.append((start_t, start_t + duration_s + self.tail_s))
+
+    def record(self, start_t: float, pcm: bytes) -> None:
+        """The sound (16 kHz mono s16le) whose first sample left the player at ``start_t`` (a player's
+        ``started``): kept so that its echo can be taken out of the microphone."""
+        with self._lock:
+            self._sounds = [s for s in self._sounds if s[0] + s[1].size / SAMPLE_RATE >= start_t - 60.0]
+            self._sounds.append((start_t, np.frombuffer(pcm, "<i2").astype(np.float64)))
+
+    def played(self, from_t: float, n: int) -> np.ndarray:
+        """What the bridge played during the ``n`` samples from UNIX time ``from_t``, sample for sample
+        (zeros where it played nothing)."""
+        out = np.zeros(n)
+        with self._lock:
+            sounds = list(self._sounds)
+        for start_t, samples in sounds:
+            offset = round((from_t - start_t) * SAMPLE_RATE)  # index in the sound of the window's first sample
+            lo, hi = max(0, offset), min(samples.size, offset + n)
+            if lo < hi:
+                out[lo - offset:hi - offset] += samples[lo:hi]
+        return out
 
     def deaf(self, from_t: float, to_t: float) -> bool:
         """Whether audio captured between these times may hold the bridge's own sound."""
@@ -71,9 +95,17 @@ class SpeakerPlayer:
         self._sd = sd
         self.device = device
 
-    def play(self, pcm: bytes) -> None:
+    def play(self, pcm: bytes, started: Callable[[float], None] | None = None) -> None:
         samples = np.frombuffer(pcm, "<i2")
+        if started is not None:  # PortAudio's output latency: the sound leaves that much after the call
+            started(time.time() + self._latency_s())
         self._sd.play(samples, SAMPLE_RATE, device=self.device, blocking=True)
+
+    def _latency_s(self) -> float:
+        try:
+            return float(self._sd.query_devices(self.device, kind="output")["default_high_output_latency"])
+        except Exception:  # noqa: BLE001 - a device that does not say: the canceller learns the delay
+            return 0.0
 
 
 def open_speaker(device: int | str | None = None) -> SpeakerPlayer:
@@ -95,7 +127,9 @@ class TimedSink:
 
     name = "timed sink"
 
-    def play(self, pcm: bytes) -> None:
+    def play(self, pcm: bytes, started: Callable[[float], None] | None = None) -> None:
+        if started is not None:
+            started(time.time())
         time.sleep(pcm_seconds(pcm))
 
 
@@ -106,9 +140,11 @@ class EchoRoom:
 
     name = "echo room"
 
-    def __init__(self, gain: float, delay_s: float) -> None:
+    def __init__(self, gain: float, delay_s: float, response: np.ndarray | None = None) -> None:
         self.gain = gain
         self.delay_s = delay_s
+        #: the room's impulse response from speaker to microphone (None: the direct path alone)
+        self.response = response
         self.t0: float | None = None  # UNIX time of the recording's first sample
         self._pending: list[tuple[int, np.ndarray]] = []  # (first sample index in the recording, samples)
         self._lock = threading.Lock()
@@ -119,9 +155,13 @@ class EchoRoom:
         """The recording's first sample is at UNIX time ``t0`` (``paced_chunks``' ``on_start``)."""
         self.t0 = t0
 
-    def play(self, pcm: bytes) -> None:
+    def play(self, pcm: bytes, started: Callable[[float], None] | None = None) -> None:
         now = time.time()
+        if started is not None:
+            started(now)
         samples = np.frombuffer(pcm, "<i2").astype(np.float32) * self.gain
+        if self.response is not None:
+            samples = np.convolve(samples, self.response).astype(np.float32)
         with self._lock:
             if self.t0 is not None:
                 at = round((now + self.delay_s - self.t0) * SAMPLE_RATE)

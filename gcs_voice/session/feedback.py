@@ -98,6 +98,8 @@ class SoundSettings:
     tones: dict[str, list[list[float]]]
     tail_s: float
     speed_wpm: int
+    #: the echo canceller's settings (``gcs_voice.audio.echo_cancel.EchoCanceller``'s keywords); None: off
+    echo_cancel: dict[str, float] | None = None
 
 
 def _load(path: Path) -> dict[str, Any]:
@@ -139,9 +141,15 @@ def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSetti
     missing = [t for t in TONES if t not in tones]
     if missing:
         raise GcsVoiceError(f"{path}: [tones] has no {', '.join(missing)}")
+    echo = data.get("echo", {})
+    cancel = None
+    if echo.get("cancel", False):
+        try:
+            cancel = {key: float(echo[key]) for key in ("length_s", "step", "min_step") if key in echo}
+        except (TypeError, ValueError):
+            raise GcsVoiceError(f"{path}: [echo] length_s, step and min_step must be numbers") from None
     return SoundSettings(float(data.get("amplitude", 0.3)), float(data.get("fade_s", 0.005)), tones,
-                         float(data.get("echo", {}).get("tail_s", 0.4)),
-                         int(data.get("speech", {}).get("speed_wpm", 175)))
+                         float(echo.get("tail_s", 0.4)), int(data.get("speech", {}).get("speed_wpm", 175)), cancel)
 
 
 def cue_for(event: Event, phrases: Phrases) -> Cue | None:
@@ -318,7 +326,7 @@ class Feedback:
                           tone=cue.tone, words=cue.words if speech is not None else "", played_t=start,
                           seconds=round(seconds, 3), player=self.player.name)
             try:
-                self.player.play(pcm)
+                self.player.play(pcm, started=lambda t, sound=pcm: self.gate.record(t, sound))  # the canceller's reference
             except Exception as exc:  # noqa: BLE001 - a broken speaker must not end the session
                 self.bus.emit("warning", f"feedback: the speaker failed ({str(exc).splitlines()[0] if str(exc) else type(exc).__name__}); "
                               "feedback is shown, not heard", source="feedback")

@@ -138,11 +138,12 @@ def _script(config: SessionConfig) -> list[ScriptStep]:
 
 
 def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: EventBus
-              ) -> tuple[Feedback | None, EchoGate | None, EchoRoom | None]:
-    """The session's feedback (subscribed to the bus), the gate that keeps the microphone deaf to it, and the
-    echo room it plays into (``feedback_echo``); Nones when off, or (said once) when there is no speaker."""
+              ) -> tuple[Feedback | None, EchoGate | None, EchoRoom | None, Callable[[float, bytes], bytes] | None]:
+    """The session's feedback (subscribed to the bus), the gate that keeps the microphone deaf to it, the
+    echo room it plays into (``feedback_echo``), and what takes its echo out of the stop spotter's audio while
+    deaf; Nones when off, or (said once) when there is no speaker."""
     if config.feedback == "off":
-        return None, None, None
+        return None, None, None, None
     from gcs_voice.audio.speaker import EchoGate, EchoRoom, open_speaker
     from gcs_voice.session.feedback import FEEDBACK_DIR, Feedback, load_phrases, load_sound_settings
 
@@ -166,7 +167,7 @@ def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: Ev
             player = open_speaker()
         except GcsVoiceError as exc:
             bus.emit("warning", f"feedback off: {exc}; decisions are shown, not heard", source="feedback")
-            return None, None, None
+            return None, None, None, None
     # the microphone is deaf while the speaker plays; a recording (--listen-wav) hears the speaker only through
     # the echo room: played out of the sound card, the feedback cannot reach it, so there is nothing to gate
     gate = (EchoGate(sounds.tail_s) if room is not None or (config.listen_wav is None and config.feedback_player is None)
@@ -174,7 +175,12 @@ def _feedback(config: SessionConfig, dictionaries: Sequence[Dictionary], bus: Ev
     default = config.lang if config.lang in languages else next(iter(languages))
     feedback = Feedback(config.feedback, languages, default, player, gate or EchoGate(0.0), bus, sounds)
     bus.subscribe(feedback)
-    return feedback, gate, room
+    clean = None
+    if gate is not None and sounds.echo_cancel is not None:
+        from gcs_voice.audio.echo_cancel import EchoCanceller, PlayedEcho
+
+        clean = PlayedEcho(gate, EchoCanceller(**sounds.echo_cancel))
+    return feedback, gate, room, clean
 
 
 class _Terminated(KeyboardInterrupt):
@@ -258,7 +264,7 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
         bus.emit("session", f"session start: {config.connection}, logs {tlog.name} + {jsonl.name}", phase="start",
                  argv=sys.argv[1:], connection=config.connection, tlog=str(tlog), jsonl=str(jsonl),
                  engine=getattr(recognizer, "name", None), lang=config.lang, matcher=getattr(matcher, "name", None))
-        feedback, gate, echo_room = _feedback(config, dictionaries, bus)  # (its notices follow the start)
+        feedback, gate, echo_room, clean = _feedback(config, dictionaries, bus)  # (its notices follow the start)
         link = VehicleLink(config.connection, settings, tlog_path=tlog, on_event=link_said,
                            security=config.link_security)
         link.open()
@@ -297,7 +303,7 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                 start_voice_thread(bridge, run_microphone, pipeline, bridge,
                                    microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
                                                          on_tentative=tentatives,
-                                                         deaf=gate.deaf if gate is not None else None),
+                                                         deaf=gate.deaf if gate is not None else None, clean=clean),
                                    stop_path is not None, tentatives)
             else:
                 from gcs_voice.audio.sources import AudioChunk, paced_chunks
@@ -318,7 +324,7 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                 start_voice_thread(bridge, run_recording, pipeline, bridge,
                                    microphone_utterances(on_speech=on_speech, on_tentative=tentatives,
                                                          chunks=recording(),
-                                                         deaf=gate.deaf if gate is not None else None),
+                                                         deaf=gate.deaf if gate is not None else None, clean=clean),
                                    stop_path is not None, tentatives, config.hold_s)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread

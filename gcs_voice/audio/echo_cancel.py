@@ -1,0 +1,120 @@
+"""Subtract the bridge's own sound from the microphone: an acoustic echo canceller for the stop spotter.
+
+While the bridge speaks, the segmenter is deaf (half-duplex for commands, ``gcs_voice.audio.microphone``) and
+only the stop spotter listens, so that a "stop" said over the bridge's voice still stops. The spotter then
+hears the pilot's voice mixed with the bridge's own, as loud as the pilot's when the speaker is beside the
+microphone. The bridge knows exactly what it played and when (``EchoGate``), so what the room returns of it
+can be predicted and taken away, as every hands-free phone and smart speaker does.
+
+The filter is the partitioned-block frequency-domain adaptive filter of Speex's echo canceller (MDF: Soo and
+Pang 1990), an NLMS per frequency bin over ``length_s`` of the room's response (the sound card's output
+latency, the path from speaker to microphone and the room's reverberation all fall inside it). Its step is
+controlled as in Valin 2007 ("On adjusting the learning rate in frequency domain echo cancellation with
+double-talk"): it learns in proportion to how much of what is left is echo, so the pilot talking over the
+bridge (double talk) does not teach it to cancel the pilot. It keeps what it learned between cues: the room
+does not change between two sentences of the bridge. Where nothing was played it returns the microphone
+as it is.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from gcs_voice.audio.speaker import EchoGate
+
+__all__ = ["EchoCanceller", "PlayedEcho"]
+
+
+class EchoCanceller:
+    """Microphone in, microphone less the predicted echo of ``reference`` (what the bridge played) out.
+
+    ``block`` samples per step (16 ms at 16 kHz), ``length_s`` of echo path modelled, ``step`` the NLMS
+    step at full confidence. Samples come in any chunk size; the output lags by less than one block.
+    """
+
+    def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
+                 min_step: float = 0.35) -> None:
+        if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
+            raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
+                             f"length_s {length_s} above 0")
+        self.block = block
+        self.parts = max(1, int(round(length_s * rate / block)))
+        self.step = step
+        self.min_step = min_step
+        bins = block + 1
+        self._w = np.zeros((self.parts, bins), np.complex128)  # the echo path, per partition
+        self._x = np.zeros((self.parts, bins), np.complex128)  # spectra of the last reference blocks, newest first
+        self._x_power = np.zeros(bins)  # smoothed power of the reference per bin
+        self._echo_power = np.zeros(bins)  # smoothed power of the predicted echo
+        self._error_power = np.zeros(bins)  # smoothed power of what is left
+        self._prev_ref = np.zeros(block)
+        self._mic_in = np.zeros(0)
+        self._ref_in = np.zeros(0)
+        self.blocks = 0
+
+    def process(self, mic: np.ndarray, reference: np.ndarray) -> np.ndarray:
+        """The microphone's samples with the echo of ``reference`` (the same length, aligned in time:
+        ``reference[i]`` was played when ``mic[i]`` was captured) taken away; float samples, any scale."""
+        if mic.shape != reference.shape:
+            raise ValueError("microphone and reference must have the same length")
+        self._mic_in = np.concatenate([self._mic_in, np.asarray(mic, np.float64)])
+        self._ref_in = np.concatenate([self._ref_in, np.asarray(reference, np.float64)])
+        n = (self._mic_in.size // self.block) * self.block
+        out = np.empty(n)
+        for i in range(0, n, self.block):
+            out[i:i + self.block] = self._step(self._mic_in[i:i + self.block], self._ref_in[i:i + self.block])
+        self._mic_in, self._ref_in = self._mic_in[n:], self._ref_in[n:]
+        return out
+
+    def drop_pending(self) -> None:
+        """Forget the part-block waiting for more samples (what is learned of the room stays)."""
+        self._mic_in, self._ref_in = np.zeros(0), np.zeros(0)
+
+    def _step(self, mic: np.ndarray, ref: np.ndarray) -> np.ndarray:
+        b = self.block
+        if not ref.any() and not self._prev_ref.any() and not self._x.any():
+            return mic.copy()  # nothing of ours in the room: the microphone as it is
+        self.blocks += 1
+        x = np.fft.rfft(np.concatenate([self._prev_ref, ref]))
+        self._prev_ref = ref.copy()
+        self._x = np.roll(self._x, 1, axis=0)
+        self._x[0] = x
+        echo_spectrum = np.sum(self._w * self._x, axis=0)
+        echo = np.fft.irfft(echo_spectrum)[b:]
+        error = mic - echo
+        e = np.fft.rfft(np.concatenate([np.zeros(b), error]))
+        a = 0.9  # smoothing of the powers over about 10 blocks (160 ms)
+        self._x_power = a * self._x_power + (1 - a) * np.sum(np.abs(self._x) ** 2, axis=0) / self.parts
+        self._echo_power = a * self._echo_power + (1 - a) * np.abs(echo_spectrum) ** 2
+        self._error_power = a * self._error_power + (1 - a) * np.abs(e) ** 2
+        # Learn as much as what is left is our echo: little while the pilot talks over it (Valin 2007)
+        share = np.clip(self._echo_power / (self._error_power + 1e-9), self.min_step, 1.0)
+        mu = self.step * share / (self.parts * self._x_power + 1e-6 * (1 + self._x_power.max()))
+        gradient = np.conj(self._x) * (mu * e)
+        g = np.fft.irfft(gradient, axis=1)
+        g[:, b:] = 0.0  # the constraint: each partition stays a causal filter of one block
+        self._w += np.fft.rfft(g, axis=1)
+        return error
+
+
+class PlayedEcho:
+    """The microphone's audio less the echo of what ``gate`` says the bridge played at the time it was
+    captured: ``(capture UNIX time of the first sample, PCM) -> PCM`` (16 kHz mono s16le), for the stop
+    spotter while the microphone is deaf. One instance per microphone: it keeps the room it learned."""
+
+    def __init__(self, gate: EchoGate, canceller: EchoCanceller | None = None, rate: int = 16_000) -> None:
+        self.gate = gate
+        self.canceller = canceller or EchoCanceller(rate)
+        self.rate = rate
+        self._next_t: float | None = None
+
+    def __call__(self, start_t: float, pcm: bytes) -> bytes:
+        mic = np.frombuffer(pcm, "<i2").astype(np.float64)
+        if self._next_t is not None and abs(start_t - self._next_t) > self.canceller.block / self.rate:
+            self.canceller.drop_pending()  # a gap in the capture: a part-block of before is not joined to now
+        self._next_t = start_t + mic.size / self.rate
+        out = self.canceller.process(mic, self.gate.played(start_t, mic.size))
+        return np.clip(np.round(out), -32768, 32767).astype("<i2").tobytes()

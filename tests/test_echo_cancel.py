@@ -1,0 +1,182 @@
+"""The echo canceller: the bridge's own voice taken out of what the stop spotter hears while it speaks.
+
+Real parts: the bridge's cue as espeak-ng renders it, real held-out "stop" recordings of ../shared/speech,
+PocketSphinx's stop spotter, the microphone path in real time (``microphone_utterances``) with the echo room
+of ``--listen-wav`` sessions. The room is the textbook statistical one of ``tools.bench_echo``.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from gcs_voice.audio import SAMPLE_RATE
+from gcs_voice.audio.echo_cancel import EchoCanceller, PlayedEcho
+from gcs_voice.audio.microphone import microphone_utterances
+from gcs_voice.audio.sources import paced_chunks, read_wav
+from gcs_voice.audio.speaker import EchoGate, EchoRoom
+from gcs_voice.errors import GcsVoiceError
+from gcs_voice.session.feedback import load_sound_settings
+from tools.bench_echo import room_response, voiced_dbfs
+
+DELAY_S = 0.06
+
+
+def _cue(words: str) -> np.ndarray:
+    from gcs_voice.audio.sounds import Speech, tone
+
+    s = load_sound_settings()
+    try:
+        said = Speech("en-us", s.speed_wpm).say(words)
+    except GcsVoiceError as exc:
+        pytest.skip(str(exc))
+    return np.frombuffer(tone(s.tones["doing"], s.amplitude, s.fade_s) + said, "<i2").astype(np.float64)
+
+
+def _room(y: np.ndarray) -> np.ndarray:
+    return np.concatenate([np.zeros(int(DELAY_S * SAMPLE_RATE)), np.convolve(y, room_response(0.3, 6.0))])
+
+
+def _heard(canceller: EchoCanceller, played: np.ndarray, pilot: np.ndarray | None = None, at: int = 0
+           ) -> tuple[np.ndarray, np.ndarray]:
+    """(microphone, microphone less the canceller's estimate) for ``played`` through the room, with the pilot's
+    ``pilot`` starting ``at`` samples in."""
+    echo = _room(played)
+    n = max(echo.size, at + (pilot.size if pilot is not None else 0)) + SAMPLE_RATE // 4
+    mic, reference = np.zeros(n), np.zeros(n)
+    mic[:echo.size] += echo
+    if pilot is not None:
+        mic[at:at + pilot.size] += pilot
+    reference[:played.size] = played
+    canceller.drop_pending()  # a clip of its own, not the continuation of the last one
+    return mic, canceller.process(mic, reference)
+
+
+def test_where_nothing_was_played_the_microphone_is_untouched() -> None:
+    mic = np.random.default_rng(1).normal(0, 3000, 10 * 256)
+    out = EchoCanceller().process(mic, np.zeros_like(mic))
+    assert np.array_equal(out, mic)
+
+
+def test_it_learns_the_room_and_takes_most_of_the_bridge_voice_away() -> None:
+    """A session's cues teach the filter the room: by the fourth, the echo is 15 dB down (a spotter hears a
+    pilot as loud as the bridge as if the bridge were 15 dB quieter)."""
+    canceller = EchoCanceller(**load_sound_settings().echo_cancel)
+    erle = []
+    for words in ("going left", "going forward, turning right", "refused, not armed", "going back"):
+        mic, out = _heard(canceller, _cue(words) * 0.5)
+        erle.append(10 * np.log10(np.sum(mic[:out.size] ** 2) / np.sum(out ** 2)))
+    assert erle[-1] > 15.0, f"echo only {erle[-1]:.1f} dB down by the fourth cue ({erle})"
+    assert erle[0] < erle[-1] - 5.0, erle  # it learned, not a fixed gain
+
+
+def test_the_pilot_talking_over_the_bridge_is_kept(real_speech_dir: Path) -> None:
+    """Double talk: what the canceller learns while the pilot speaks over the bridge must not eat the pilot;
+    over the pilot's words the rest (echo left, pilot lost) falls well below what the raw microphone has."""
+    from tools.real_speech import load_recordings
+
+    stop = next(np.frombuffer(read_wav(r.path), "<i2").astype(np.float64)
+                for r in load_recordings(real_speech_dir, split="test") if r.action == "stop")
+    voice = _cue("going forward, turning right")
+    voice *= 10 ** ((voiced_dbfs(stop) - voiced_dbfs(voice)) / 20)  # as loud as the pilot
+    canceller = EchoCanceller(**load_sound_settings().echo_cancel)
+    for words in ("going left", "refused, not armed", "going back"):  # the session's earlier cues
+        _heard(canceller, _cue(words) * (voice.std() / _cue(words).std()))
+    at = int(0.5 * SAMPLE_RATE)
+    mic, out = _heard(canceller, voice, stop, at)
+    span = slice(at, at + stop.size)
+    before = 10 * np.log10(np.sum(stop ** 2) / np.sum((mic[span] - stop) ** 2))
+    after = 10 * np.log10(np.sum(stop ** 2) / np.sum((out[span] - stop) ** 2))
+    assert after > before + 6.0, f"pilot to rest {before:.1f} dB -> {after:.1f} dB"
+
+
+def test_settings_that_are_not_numbers_are_one_line(tmp_path: Path) -> None:
+    from gcs_voice.session.feedback import FEEDBACK_DIR
+
+    text = (FEEDBACK_DIR / "sounds.toml").read_text(encoding="utf-8").replace("step = 0.5", 'step = "fast"')
+    path = tmp_path / "sounds.toml"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(GcsVoiceError, match="must be numbers"):
+        load_sound_settings(path)
+
+
+def test_real_stops_as_loud_as_the_bridge_voice_are_spotted_more_often(real_speech_dir: Path) -> None:
+    """The held-out stops the spotter hears alone, each said 0.5 s into the bridge's cue as loud as the pilot
+    in the room: with the echo taken out the spotter hears clearly more of them (tools.bench_echo, +0 dB)."""
+    pytest.importorskip("pocketsphinx")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from tools.real_speech import load_recordings
+
+    spotter = load_stop_spotter(["en"])
+    settings = load_sound_settings()
+    voice, earlier = _cue("going forward, turning right"), _cue("going left")
+
+    def spotted(x: np.ndarray) -> bool:
+        return spotter.spot(np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()).fired
+
+    stops = [np.frombuffer(read_wav(r.path), "<i2").astype(np.float64)
+             for r in load_recordings(real_speech_dir, split="test") if r.action == "stop"]
+    raw = cancelled = 0
+    alone = [x for x in stops if spotted(x)]
+    for stop in alone:
+        gain = 10 ** ((voiced_dbfs(stop) - voiced_dbfs(voice)) / 20)
+        canceller = EchoCanceller(**settings.echo_cancel)
+        _heard(canceller, earlier * gain)
+        mic, out = _heard(canceller, voice * gain, stop, int(0.5 * SAMPLE_RATE))
+        raw += spotted(mic)
+        cancelled += spotted(out)
+    assert raw < len(alone), "the bridge's voice hid no stop: the test would prove nothing"
+    assert cancelled >= raw + 3, f"spotted {raw} raw, {cancelled} with the echo taken out, of {len(alone)}"
+
+
+def test_the_microphone_path_gives_the_spotter_the_microphone_less_the_echo() -> None:
+    """Live (``--listen-wav``'s room, real time): while the bridge speaks, what the stop spotter is fed is the
+    microphone less the echo of what the gate says was played; by the third cue most of the echo is gone."""
+    settings = load_sound_settings()
+    cues = [_cue(words).astype("<i2").tobytes() for words in ("going left", "refused, not armed", "going back")]
+    lead, gap = int(0.5 * SAMPLE_RATE), int(1.0 * SAMPLE_RATE)
+    starts, at = [], lead
+    for pcm in cues:
+        starts.append(at)
+        at += len(pcm) // 2 + gap
+    recording = bytes(2 * (at + SAMPLE_RATE))  # a quiet room: all the microphone hears is the bridge
+    room = EchoRoom(0.5, 0.1, room_response(0.3, 6.0))
+    gate = EchoGate(settings.tail_s)
+    heard: list[list[bytes]] = []
+
+    def listener(pcm: bytes | None) -> None:
+        if pcm is None:
+            return
+        if not heard or len(heard) < len(room.played):
+            heard.append([])
+        heard[-1].append(pcm)
+
+    def chunks():
+        pending = list(zip(starts, cues))
+        for chunk in room.hear(paced_chunks(recording, on_start=room.start)):
+            if pending and chunk.start_s >= pending[0][0] / SAMPLE_RATE:
+                _start, pcm = pending.pop(0)
+
+                def play(pcm: bytes = pcm) -> None:
+                    gate.hold(time.time(), len(pcm) / 2 / SAMPLE_RATE)  # as Feedback does
+                    room.play(pcm, started=lambda t: gate.record(t, pcm))
+
+                threading.Thread(target=play, daemon=True).start()
+            yield chunk
+
+    utterances = list(microphone_utterances(on_speech=listener, chunks=chunks(), deaf=gate.deaf,
+                                            clean=PlayedEcho(gate, EchoCanceller(**settings.echo_cancel))))
+    assert utterances == []  # the segmenter stays deaf to the bridge: half-duplex for commands
+    assert len(room.played) == 3 and len(heard) == 3, (len(room.played), len(heard))
+    erle = []
+    for pcm, fed in zip(cues, heard):
+        echo = np.convolve(np.frombuffer(pcm, "<i2").astype(np.float64) * 0.5, room_response(0.3, 6.0))
+        fed_samples = np.frombuffer(b"".join(fed), "<i2").astype(np.float64)
+        erle.append(float(10 * np.log10(np.sum(echo ** 2) / (np.sum(fed_samples ** 2) + 1e-9))))
+    # the raw microphone would give the spotter the whole echo (0 dB); the canceller learns the room: the third
+    # cue comes out about 11 dB down on an idle machine, 7.5 beside six busy processes on two cores
+    assert erle[-1] > 5.0 and erle[-1] > erle[0] + 3.0, f"echo left per cue, dB below the raw echo: {erle}"
