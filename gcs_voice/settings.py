@@ -60,6 +60,7 @@ class Settings:
     ceiling_m: float
     fence_radius_m: float
     hard_landing_m_s: float
+    battery_low_pct: float
     gcs_system_id: int
     gcs_component_id: int
     heartbeat_hz: float

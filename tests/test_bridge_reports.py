@@ -124,3 +124,38 @@ def test_halt_makes_the_very_next_setpoint_a_stop_from_any_thread() -> None:
     mapper.apply("go_left", state)  # a command heard after the Ctrl-C moves nothing
     assert mapper.setpoint(state).is_stop
 
+
+
+def test_the_bridge_says_battery_low_once_below_its_threshold_whatever_the_autopilot_says(tmp_path: Path) -> None:
+    """The vehicle's SYS_STATUS falls through battery_low_pct: one "battery low" line (a warning, which the
+    feedback says aloud), not one per message; said again only after a charge 5 points above (another battery).
+    The vehicle sends no STATUSTEXT of its own: an autopilot whose warning is off is still covered."""
+    from pymavlink.dialects.v20 import common as mavlink
+
+    from gcs_voice.session.feedback import cue_for, load_phrases
+
+    settings = replace(load_settings(), battery_low_pct=25.0)
+    lines: list[str] = []
+
+    def battery(pct: int) -> None:
+        vehicle.conn.mav.send(mavlink.MAVLink_sys_status_message(0, 0, 0, 500, 11800, 1200, pct, 0, 0, 0, 0, 0, 0))
+
+    with ScriptedVehicle() as vehicle:
+        link = VehicleLink(vehicle.connection, settings, tlog_path=tmp_path / "b.tlog", on_event=lines.append)
+        try:
+            link.open()
+            link.connect(timeout_s=10)
+            for pct in (40, 26, 24, 23, 20, 27, 31, 22):
+                battery(pct)
+                deadline = threading.Event()
+                for _ in range(200):  # the link's state follows each message (polled, never a fixed sleep)
+                    if link.state.battery_pct == pct:
+                        break
+                    deadline.wait(0.05)
+                assert link.state.battery_pct == pct
+        finally:
+            link.close()
+    low = [line for line in lines if line.startswith("battery low")]
+    assert low == ["battery low: 24 % left (warning below 25 %)", "battery low: 22 % left (warning below 25 %)"], lines
+    cue = cue_for(Event("warning", low[0], data={"source": "link"}), load_phrases("en"))
+    assert cue is not None and cue.words == "battery low"

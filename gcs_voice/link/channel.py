@@ -50,6 +50,7 @@ class LinkChannel:
         except OSError as exc:
             raise LinkError(f"cannot write the flight log {tlog_path}: {exc.strerror or exc}") from None
         self.on_event = on_event or (lambda _line: None)
+        self._battery_warned = False
         self.tracker = VehicleStateTracker(self.settings.gcs_system_id, self.settings.link_lost_s,
                                            gcs_component_id=self.settings.gcs_component_id)
         self._conn: mavutil.mavfile | None = None
@@ -188,6 +189,19 @@ class LinkChannel:
         for event in events:
             if isinstance(event, StatusText):
                 self.on_event(f"vehicle: {event.text}")
+        self._check_battery(self.tracker.state.battery_pct)
+
+    def _check_battery(self, pct: int | None) -> None:
+        """Say once when the charge falls below ``battery_low_pct``, whatever the autopilot's own warnings are
+        set to; again only after it has been 5 points above (another battery)."""
+        low = self.settings.battery_low_pct
+        if pct is None or low <= 0:
+            return
+        if pct < low and not self._battery_warned:
+            self._battery_warned = True
+            self.on_event(f"battery low: {pct} % left (warning below {low:g} %)")
+        elif pct >= low + 5:
+            self._battery_warned = False
 
     def _check_link(self, now: float) -> None:
         with self._lock:

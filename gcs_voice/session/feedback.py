@@ -169,6 +169,8 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
                    stale_s=STALE_S)
     if event.kind == "link" and d.get("state") in ("lost", "restored"):
         return Cue("warning", said["link_lost" if d["state"] == "lost" else "link_restored"])
+    if event.kind == "warning" and d.get("source") == "link" and event.msg.startswith("battery low: "):
+        return Cue("warning", said["battery"])  # the bridge's own threshold (battery_low_pct), link.channel
     if event.kind == "warning" and d.get("source") == "link" and event.msg.startswith("vehicle now "):
         # "vehicle now RTL, armed" (gcs_voice.link.channel: a mode or arming change, whoever made it)
         return Cue("warning", phrases.mode(event.msg.removeprefix("vehicle now ").split(",")[0]))
