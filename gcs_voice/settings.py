@@ -24,7 +24,7 @@ __all__ = ["Settings", "SettingsError", "Limit", "load_settings", "setting_limit
 
 DEFAULT_SETTINGS_PATH = Path(__file__).resolve().parent / "data" / "settings.toml"
 #: Integer-valued settings; every other setting is a float.
-_INT_KEYS = frozenset({"gcs_system_id", "gcs_component_id", "command_retries", "data_stream_hz"})
+_INT_KEYS = frozenset({"gcs_system_id", "gcs_component_id", "command_retries", "data_stream_hz", "return_home_lands"})
 
 
 #: the packaged file's table of [low, high] per setting; user files may not hold it
@@ -56,6 +56,7 @@ class Settings:
     vertical_speed_m_s: float
     turn_step_deg: float
     takeoff_altitude_m: float
+    return_home_lands: int
     floor_m: float
     ceiling_m: float
     fence_radius_m: float

@@ -274,3 +274,35 @@ def test_a_resumed_descent_still_stops_at_the_floor() -> None:
     mapper.resume(flying(height_m=0.6))
     assert mapper.setpoint(flying(height_m=0.6)).down_m_s == pytest.approx(V)
     assert mapper.setpoint(flying(height_m=SETTINGS.floor_m - 0.01)).is_stop and mapper.action == "stop"
+
+
+@pytest.mark.parametrize("heading_deg", [0.0, 37.0, 200.0])
+def test_return_home_flies_straight_home_at_its_height_and_holds_there(heading_deg: float) -> None:
+    """return_home_lands = 0: a bounded motion toward home (whatever the heading), the height held, ending by
+    itself at home with a hold there; the heading is kept."""
+    mapper = ActionMapper(SETTINGS)
+    away = flying(heading_deg, height_m=2.0, north_m=3.0, east_m=-4.0)
+    mapper.setpoint(away)
+    mapped = mapper.apply("return_home", away)
+    assert mapped.flight_operation is None and mapped.refused == "" and mapped.amount == "5.0 m"
+    sp = mapper.setpoint(away)
+    north, east, down = sp.ned_m_s()
+    assert (north, east) == pytest.approx((-3.0 / 5.0 * H, 4.0 / 5.0 * H)) and down == 0.0
+    assert sp.hold_down_m == -2.0 and sp.yaw_deg == pytest.approx(heading_deg)
+    near = flying(heading_deg, height_m=2.0, north_m=0.3, east_m=-0.4)   # 0.5 m to go: slowing down
+    assert math.hypot(*mapper.setpoint(near).ned_m_s()[:2]) == pytest.approx(0.5, abs=0.01)
+    home = flying(heading_deg, height_m=2.0, north_m=0.01, east_m=-0.02)
+    held = mapper.setpoint(home)
+    assert held.is_stop and (held.hold_north_m, held.hold_east_m) == (0.0, 0.0) and mapper.action == "stop"
+    assert any("home reached" in e for e in mapper.events)
+
+
+def test_return_home_ends_with_stop_refuses_without_a_position_and_is_a_stop_at_home() -> None:
+    mapper = ActionMapper(SETTINGS)
+    mapper.apply("return_home", flying(north_m=5.0))
+    mapper.apply("stop", flying(north_m=4.0))
+    assert mapper.setpoint(flying(north_m=4.0)).is_stop and mapper.bound is None
+    lost = replace(flying(), north_m=math.nan)
+    assert "position unknown" in mapper.apply("return_home", lost).refused
+    at_home = mapper.apply("return_home", flying(north_m=0.02))
+    assert at_home.action == "stop" and at_home.amount == "home"

@@ -39,7 +39,7 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol
 
-from gcs_voice.actions.setpoint import Setpoint, body_to_ned, wrap_deg
+from gcs_voice.actions.setpoint import Setpoint, body_to_ned, ned_to_body, wrap_deg
 from gcs_voice.domain.dictionary import ACTIONS, FLIGHT_ACTIONS
 from gcs_voice.settings import Settings, load_settings
 from gcs_voice.domain.amounts import Amount
@@ -102,8 +102,12 @@ VERTICAL_MOTIONS = frozenset({"up", "down"})
 #: a bounded motion slows within 1/BOUND_GAIN_HZ seconds of its target, and ends within ARRIVED_M of it
 BOUND_GAIN_HZ = 1.0
 ARRIVED_M = 0.05
+#: "return home" (settings return_home_lands = 0): a horizontal motion to home, bounded there, at the present height
+HOMEWARD = "return_home"
+#: what moves the vehicle over the ground (no horizontal hold while it runs)
+MOVING_OVER_GROUND = HORIZONTAL_MOTIONS | {HOMEWARD}
 #: what ``pause`` holds: the motions that move the vehicle through space (a turn only rotates it in place)
-TRANSLATING_MOTIONS = HORIZONTAL_MOTIONS | VERTICAL_MOTIONS
+TRANSLATING_MOTIONS = MOVING_OVER_GROUND | VERTICAL_MOTIONS
 
 
 def _point(state: VehicleState) -> tuple[float, float] | None:
@@ -204,9 +208,30 @@ class ActionMapper:
         With an ``amount`` (a definite one: ``amounts.amount_reason``) the motion is bounded; an amount whose
         target crosses a limit is refused (``MappedAction.refused``) and the current action stays."""
         with self._lock:
+            if action == HOMEWARD and not self._halted:
+                return self._apply_home(state)
             if amount is not None and action not in FLIGHT_ACTIONS and not self._halted:
                 return self._apply_bounded(action, state, amount)
             return self._apply(action, state)
+
+    def _apply_home(self, state: VehicleState) -> MappedAction:
+        """Fly straight back to home at the present height; at home, hold there (a bounded motion: a stop or any
+        command ends it, and it ends by itself)."""
+        yaw = self._init_yaw(state)
+        start = _point(state)
+        if start is None:
+            return MappedAction(HOMEWARD, None, yaw, refused="position unknown: home cannot be found")
+        home = (state.home_north_m if _finite(state.home_north_m) else 0.0,
+                state.home_east_m if _finite(state.home_east_m) else 0.0)
+        north, east = home[0] - start[0], home[1] - start[1]
+        away = math.hypot(north, east)
+        if away <= ARRIVED_M:
+            mapped = self._apply("stop", state)
+            self.hold_point = home
+            return MappedAction(mapped.action, None, yaw, amount="home")
+        mapped = self._apply(HOMEWARD, state)
+        self.bound = Bound("home", point=home, direction=(north / away, east / away))
+        return MappedAction(mapped.action, None, yaw, amount=f"{away:.1f} m")
 
     def _apply_bounded(self, action: str, state: VehicleState, amount: Amount) -> MappedAction:
         yaw = self._init_yaw(state)
@@ -216,7 +241,7 @@ class ActionMapper:
             return MappedAction(mapped.action, None, mapped.yaw_target_deg, amount=label)
         s = self.settings
         if action in HORIZONTAL_MOTIONS:
-            start = self.hold_point if self.action not in HORIZONTAL_MOTIONS and self.hold_point else _point(state)
+            start = self.hold_point if self.action not in MOVING_OVER_GROUND and self.hold_point else _point(state)
             if start is None:
                 return MappedAction(action, None, yaw, refused="position unknown: no distance can be measured")
             forward, right = {"go_forward": (1.0, 0.0), "go_back": (-1.0, 0.0),
@@ -283,9 +308,9 @@ class ActionMapper:
 
     def _update_holds(self, previous: str, action: str, state: VehicleState) -> None:
         """Keep a hold while the axis stays still; take the vehicle's position where an axis stops moving."""
-        if action in HORIZONTAL_MOTIONS:
+        if action in MOVING_OVER_GROUND:
             self.hold_point = None
-        elif previous in HORIZONTAL_MOTIONS or self.hold_point is None:
+        elif previous in MOVING_OVER_GROUND or self.hold_point is None:
             self.hold_point = _point(state)
         if action in VERTICAL_MOTIONS:
             self.hold_down_m = None
@@ -334,6 +359,8 @@ class ActionMapper:
             "go_right": (0.0, h_speed, 0.0), "go_left": (0.0, -h_speed, 0.0),
             "up": (0.0, 0.0, -v_speed), "down": (0.0, 0.0, v_speed),
         }.get(self.action, (0.0, 0.0, 0.0))
+        if self.action == HOMEWARD and self.bound is not None:  # straight toward home, in the body frame
+            forward, right = ned_to_body(self.bound.direction[0] * h_speed, self.bound.direction[1] * h_speed, yaw)
         if down < 0 and (height is None or height >= self.settings.ceiling_m):
             down = 0.0
             reasons.append(f"ceiling {self.settings.ceiling_m:g} m" if height is not None else "height unknown")
@@ -346,11 +373,11 @@ class ActionMapper:
         if limits != self.limit_reason:
             self.limit_reason = limits
             self._tell_watcher()
-        if self.action not in HORIZONTAL_MOTIONS and self.hold_point is None:
+        if self.action not in MOVING_OVER_GROUND and self.hold_point is None:
             self.hold_point = _point(state)   # first setpoint after take-off, or position heard at last
         if self.action not in VERTICAL_MOTIONS and self.hold_down_m is None and _finite(state.down_m):
             self.hold_down_m = state.down_m
-        point = self.hold_point if self.action not in HORIZONTAL_MOTIONS else None
+        point = self.hold_point if self.action not in MOVING_OVER_GROUND else None
         hold_down = self.hold_down_m if self.action not in VERTICAL_MOTIONS else None
         return Setpoint(forward, right, down, yaw, point[0] if point else None, point[1] if point else None,
                         hold_down)

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-__all__ = ["Setpoint", "body_to_ned", "wrap_deg", "round_deg"]
+__all__ = ["Setpoint", "body_to_ned", "ned_to_body", "wrap_deg", "round_deg"]
 
 
 def wrap_deg(angle_deg: float) -> float:
@@ -81,3 +81,10 @@ def body_to_ned(forward_m_s: float, right_m_s: float, yaw_deg: float) -> tuple[f
     yaw_rad = math.radians(yaw_deg)
     cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
     return forward_m_s * cos_yaw - right_m_s * sin_yaw, forward_m_s * sin_yaw + right_m_s * cos_yaw
+
+
+def ned_to_body(north_m_s: float, east_m_s: float, yaw_deg: float) -> tuple[float, float]:
+    """The inverse of :func:`body_to_ned`: a (north, east) velocity as (forward, right) at heading ``yaw_deg``."""
+    yaw_rad = math.radians(yaw_deg)
+    cos_yaw, sin_yaw = math.cos(yaw_rad), math.sin(yaw_rad)
+    return north_m_s * cos_yaw + east_m_s * sin_yaw, -north_m_s * sin_yaw + east_m_s * cos_yaw

@@ -17,6 +17,7 @@ from gcs_voice.domain.text import normalize_text
 __all__ = [
     "MOTION_ACTIONS",
     "FLIGHT_ACTIONS",
+    "HOME_ACTIONS",
     "ACTIONS",
     "AUTO_LANGUAGES",
     "Dictionary",
@@ -33,7 +34,10 @@ MOTION_ACTIONS: tuple[str, ...] = (
 )
 #: Flight management a real flight needs beyond the nine (not part of the paper's benchmark).
 FLIGHT_ACTIONS: tuple[str, ...] = ("take_off", "land", "arm", "disarm")
-ACTIONS: tuple[str, ...] = MOTION_ACTIONS + FLIGHT_ACTIONS
+#: Back to where the flight started (issue 33): a motion to home that ends by itself and holds there, or the
+#: autopilot's own RTL (settings: return_home_lands)
+HOME_ACTIONS: tuple[str, ...] = ("return_home",)
+ACTIONS: tuple[str, ...] = MOTION_ACTIONS + FLIGHT_ACTIONS + HOME_ACTIONS
 #: What ``--lang auto`` listens for: the product's two languages (the paper's users mixed them).
 #: Other bundled dictionaries (``ko``, for the Vosk test) are used only when asked for by name.
 AUTO_LANGUAGES: tuple[str, ...] = ("en", "es")

@@ -289,6 +289,22 @@ class FlightOperations:
             return OperationResult("land", TIMED_OUT, f"HEARTBEAT still shows {self.link.state.mode}")
         return OperationResult("land", ACCEPTED)
 
+    def return_to_launch(self) -> OperationResult:
+        """NAV_RETURN_TO_LAUNCH: the autopilot's own return (climb to its return altitude, fly home, land); the
+        stream stops once the HEARTBEAT shows RTL (both ignore setpoints in it)."""
+        state, problem = self._vehicle("return to launch")
+        if problem:
+            return problem
+        ack, collector = self._command(mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, ())
+        refused = self._verdict("return to launch", mavlink.MAV_CMD_NAV_RETURN_TO_LAUNCH, ack, collector)
+        if refused:  # keep streaming: the vehicle is still ours and holding
+            return refused
+        wanted = state.profile.custom_mode("RTL")
+        if self.link.wait_for(lambda s: s.custom_mode == wanted, self.settings.mode_confirm_s) is None:
+            return OperationResult("return to launch", TIMED_OUT, f"HEARTBEAT still shows {self.link.state.mode}")
+        self.link.stop_stream()
+        return OperationResult("return to launch", ACCEPTED)
+
     # ---- telemetry ------------------------------------------------------------------------------
     def request_telemetry(self) -> OperationResult:
         """SET_MESSAGE_INTERVAL for what the bridge reads; REQUEST_DATA_STREAM when any is not accepted."""

@@ -90,6 +90,10 @@ class VehicleLink(LinkChannel):
         """NAV_LAND where the vehicle is; the stream stops once it is accepted."""
         return self.operations.land()
 
+    def return_to_launch(self) -> OperationResult:
+        """The autopilot's own RTL (it flies home and lands); the stream stops once the vehicle is in it."""
+        return self.operations.return_to_launch()
+
     def request_telemetry(self) -> OperationResult:
         """Ask for the messages the bridge reads, at the rates in the settings."""
         return self.operations.request_telemetry()

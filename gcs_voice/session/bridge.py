@@ -44,7 +44,7 @@ from typing import Any
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.actions.setpoint import round_deg
 from gcs_voice.understanding.decision import Decision
-from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, MOTION_ACTIONS
+from gcs_voice.domain.dictionary import FLIGHT_ACTIONS, HOME_ACTIONS, MOTION_ACTIONS
 from gcs_voice.link.acks import OperationResult
 from gcs_voice.link.readiness import assess
 from gcs_voice.link.state import VehicleState
@@ -297,19 +297,21 @@ class Bridge:
             return self._serve_pause(request, state)
         if not state.link_ok:
             return self._refuse(request, "link lost - nothing is commanded until the vehicle is heard again")
-        if action in FLIGHT_ACTIONS:
+        autopilot_return = action in HOME_ACTIONS and bool(self.link.settings.return_home_lands)
+        if action in FLIGHT_ACTIONS or autopilot_return:
             if self._busy:
                 return self._refuse(request, f"busy: {self._busy} in progress")
             if action == "disarm" and not _on_ground(state):
                 # A misheard "disarm" in the air would drop the vehicle: only on the ground.
                 return self._refuse(request, "the vehicle is flying: say 'land' first")
-            if action == "land" and state.armed is False:
+            if action in ("land", "return_home") and state.armed is False:
                 # After a crash the autopilot disarms: a "land" then does nothing and must not look done.
-                return self._refuse(request, "the vehicle is disarmed: nothing to land")
-            self.mapper.apply(action, state)  # motions end: the mapper holds while the operation runs
+                return self._refuse(request, f"the vehicle is disarmed: nothing to {action.replace('_', ' ')}")
+            # motions end: the mapper holds while the operation runs
+            self.mapper.apply("stop" if autopilot_return else action, state)
             self._start_operation(request)
             return None
-        if action not in MOTION_ACTIONS:
+        if action not in MOTION_ACTIONS and action not in HOME_ACTIONS:
             return self._refuse(request, "unknown action")
         if self._busy:
             # Even a stop: a velocity setpoint ends an ArduCopter take-off where it is (a hover near the
@@ -406,8 +408,8 @@ class Bridge:
                 # so end at once instead of waiting out the script's ready timeout.
                 self.bus.emit("error", f"take_off failed ({result}): ending the session", what=action)
                 self.finish(1)
-            if ok and action == "land":
-                self._landing = True
+            if ok and action in ("land", "return_home"):
+                self._landing = True  # the autopilot lands by itself: the end of the session waits for it
         except Exception as exc:  # a failed operation is reported, never fatal to the loop
             self.bus.emit("error", f"{action} failed: {exc}", what=action)
         finally:
@@ -425,6 +427,8 @@ class Bridge:
             return link.takeoff(self.takeoff_m, source=self.mapper.setpoint)
         if action == "land":
             return link.land()  # stops the stream first: both autopilots land on their own
+        if action == "return_home":
+            return link.return_to_launch()  # return_home_lands = 1: the autopilot's RTL flies home and lands
         if action == "arm":
             return link.arm()
         if action == "disarm":
@@ -434,7 +438,7 @@ class Bridge:
     # ---- the end ------------------------------------------------------------------------------------
     def shutdown(self) -> None:
         """Stop the vehicle (hold where it is) and keep that on the wire; after "land", wait for touchdown."""
-        if self._busy == "land" and self._op_thread is not None:
+        if self._busy in ("land", "return_home") and self._op_thread is not None:
             self._op_thread.join(timeout=self.link.settings.mode_confirm_s + 5.0)
         if self._landing and not self._interrupted:
             self._wait_landed()
@@ -442,7 +446,7 @@ class Bridge:
         try:
             state = self.link.state
             in_velocity_mode = state.profile is None or state.mode == state.profile.velocity_mode
-            if state.armed and state.link_ok and in_velocity_mode and self._busy != "land":
+            if state.armed and state.link_ok and in_velocity_mode and self._busy not in ("land", "return_home"):
                 if self.mapper.action != "stop":
                     self.mapper.apply("stop", state)
                 self.link.stream_now(self.mapper.setpoint)

@@ -14,7 +14,7 @@ from gcs_voice.session.bridge import Bridge, Request
 __all__ = ["KEY_ACTIONS", "start_key_thread"]
 
 #: key -> action (space is stop: the one command that must always be at hand)
-KEY_ACTIONS: dict[str, str] = {"t": "take_off", "l": "land", "a": "arm", "x": "disarm", " ": "stop"}
+KEY_ACTIONS: dict[str, str] = {"t": "take_off", "l": "land", "h": "return_home", "a": "arm", "x": "disarm", " ": "stop"}
 QUIT_KEYS = ("q", "\x03")  # q or Ctrl-C (cbreak keeps ISIG, but be safe)
 
 #: set by the key thread while push-to-talk is open (Enter toggles); read by the microphone source

@@ -32,6 +32,7 @@ ACTION_COLOURS = {
     "up": "tab:green", "down": "tab:brown", "go_right": "tab:orange", "go_left": "tab:purple",
     "go_forward": "tab:blue", "go_back": "tab:cyan", "turn_right": "tab:red", "turn_left": "tab:pink",
     "stop": "black", "take_off": "tab:olive", "land": "tab:gray", "arm": "tab:gray", "disarm": "tab:gray",
+    "return_home": "gold",
 }
 
 

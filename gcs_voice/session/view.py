@@ -18,7 +18,7 @@ from gcs_voice.session.events import Event, heard_words
 
 __all__ = ["ViewState", "LiveView", "render", "KEY_HELP"]
 
-KEY_HELP = "keys: t take off · l land · a arm · x disarm · space stop · q quit"
+KEY_HELP = "keys: t take off · l land · h home · a arm · x disarm · space stop · q quit"
 REFRESH_HZ = 8
 
 
