@@ -47,6 +47,22 @@ def room_response(rt60_s: float, direct_to_reverb_db: float, seed: int = 0, leng
     return tail
 
 
+def every_cue(lang: str = "en") -> list[tuple[str, str]]:
+    """(tone, words) for every cue the bridge can play in ``lang``: each action's words after the doing tone, each
+    warning and reason after the warning tone, each refusal after the refused tone."""
+    from gcs_voice.session.feedback import load_phrases
+
+    p = load_phrases(lang)
+    cues = [("doing", words) for words in p.actions.values()]
+    warnings = [p.said[k] for k in ("link_lost", "link_restored", "takeover", "battery", "take_off_failed", "error",
+                                    "collision")]
+    warnings += [p.mode(m) for m in ("RTL", "LAND", "BRAKE", "LOITER")] + list(p.reasons.values())
+    warnings += [p.said["waiting"].format(what=w) for w in p.waiting.values()]
+    cues += [("warning", words) for words in dict.fromkeys(warnings)]
+    cues += [("refused", f"{p.said['refused']}, {r}") for r in dict.fromkeys(p.reasons.values())]
+    return cues + [("not_understood", "")]
+
+
 def main(argv: list[str] | None = None) -> int:
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.echo_cancel import EchoCanceller
@@ -67,6 +83,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--cancel", default="", help="canceller settings to compare, KEY=VALUE[;KEY=VALUE...] "
                         "separated by commas (default: the shipped [echo] of sounds.toml)")
     parser.add_argument("--speech", type=Path, default=SHARED / "speech")
+    parser.add_argument("--rounds", type=int, default=3, help="times every cue is played, in a new order each")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     args = parser.parse_args(argv)
 
@@ -122,6 +139,38 @@ def main(argv: list[str] | None = None) -> int:
                     hits[1 + 2 * i + j] += spotted(canceller.process(mic, reference))
         rows.append(f"| {level:+g} dB | " + " | ".join(f"{h}/{len(alone)}" for h in hits) + " |")
         print(rows[-1], flush=True)
+    # The bridge's own cues alone (no pilot): a stop the spotter fires on them stops the vehicle for nothing.
+    # Every cue, played in a new order each round into the same room (one canceller for the whole session, as
+    # live), over a quiet room's floor (-64 dBFS of white noise); the cue's voiced level is the pilot's.
+    rng = np.random.default_rng(1)
+    cues = every_cue()
+    pilot_dbfs = float(np.median([voiced_dbfs(x) for x in alone])) if alone else -26.0
+    rendered = []
+    for tone_name, words in cues:
+        pcm = tone(s.tones[tone_name], s.amplitude, s.fade_s)
+        if words:
+            pcm += bytes(int(0.05 * RATE) * 2) + Speech("en-us", s.speed_wpm).say(words)
+        x = np.frombuffer(pcm, "<i2").astype(np.float64)
+        rendered.append(x * 10 ** ((pilot_dbfs - voiced_dbfs(x)) / 20))
+    false_stops = [0] * (1 + len(settings))
+    cancellers = [EchoCanceller(**c) for c in settings]
+    for _round in range(args.rounds):
+        for i in rng.permutation(len(rendered)):
+            x = rendered[i]
+            echo = room(x)
+            n = echo.size + RATE // 2
+            mic, reference = rng.normal(0.0, 20.0, n), np.zeros(n)
+            mic[:echo.size] += echo
+            reference[:x.size] = x
+            false_stops[0] += spotted(mic)
+            for j, canceller in enumerate(cancellers):
+                canceller.drop_pending()
+                false_stops[1 + j] += spotted(canceller.process(mic, reference))
+    played = args.rounds * len(rendered)
+    false_labels = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
+                                         for c in settings]
+    false_row = "| stops fired | " + " | ".join(f"{n}/{played}" for n in false_stops) + " |"
+    print(false_row, flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
     command = (f"python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
@@ -146,6 +195,16 @@ def main(argv: list[str] | None = None) -> int:
         "| the bridge's voice vs the pilot's | " + " | ".join(labels) + " |",
         "| --- | " + " | ".join("---" for _ in labels) + " |",
         *rows,
+        "",
+        f"The bridge's own cues alone, no pilot: every cue it can play in English ({len(rendered)}: the actions, "
+        f"warnings, reasons and refusals of gcs_voice/data/feedback/en.toml, each after its tone), {args.rounds} "
+        "rounds in a new order each, through the same room at the pilot's voiced level over a quiet room's floor, "
+        "one canceller for the whole run as in a session: how often the stop spotter fires on them (a stop for "
+        "nothing).",
+        "",
+        "| | " + " | ".join(false_labels) + " |",
+        "| --- | " + " | ".join("---" for _ in false_labels) + " |",
+        false_row,
         "",
     ])
     print(report)

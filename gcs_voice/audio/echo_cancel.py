@@ -32,11 +32,13 @@ class EchoCanceller:
     """Microphone in, microphone less the predicted echo of ``reference`` (what the bridge played) out.
 
     ``block`` samples per step (16 ms at 16 kHz), ``length_s`` of echo path modelled, ``step`` the NLMS
-    step at full confidence. Samples come in any chunk size; the output lags by less than one block.
+    step at full confidence, ``min_step`` its floor, ``regularization`` the share of the reference's mean
+    power added to each bin's in the normalisation. Samples come in any chunk size; the output lags by less
+    than one block.
     """
 
     def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
-                 min_step: float = 0.35) -> None:
+                 min_step: float = 0.35, regularization: float = 0.1, suppress: float = 1.0) -> None:
         if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
             raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
                              f"length_s {length_s} above 0")
@@ -44,6 +46,8 @@ class EchoCanceller:
         self.parts = max(1, int(round(length_s * rate / block)))
         self.step = step
         self.min_step = min_step
+        self.regularization = regularization
+        self.suppress = suppress
         bins = block + 1
         self._w = np.zeros((self.parts, bins), np.complex128)  # the echo path, per partition
         self._x = np.zeros((self.parts, bins), np.complex128)  # spectra of the last reference blocks, newest first
@@ -92,12 +96,21 @@ class EchoCanceller:
         self._error_power = a * self._error_power + (1 - a) * np.abs(e) ** 2
         # Learn as much as what is left is our echo: little while the pilot talks over it (Valin 2007)
         share = np.clip(self._echo_power / (self._error_power + 1e-9), self.min_step, 1.0)
-        mu = self.step * share / (self.parts * self._x_power + 1e-6 * (1 + self._x_power.max()))
+        # NLMS per bin, normalised by the reference's power there plus ``regularization`` times its mean over
+        # the bins: a bin our sound hardly reaches (a tone's cue excites a few) must not take huge steps on
+        # noise, or the filter there turns the next words into something else (the stop spotter heard "hold")
+        power = self.parts * self._x_power
+        mu = self.step * share / (power + self.regularization * power.mean() + 1e-6)
         gradient = np.conj(self._x) * (mu * e)
         g = np.fft.irfft(gradient, axis=1)
         g[:, b:] = 0.0  # the constraint: each partition stays a causal filter of one block
         self._w += np.fft.rfft(g, axis=1)
-        return error
+        if self.suppress <= 0:
+            return error
+        # What the filter leaves of our echo, taken down further where it still dominates (a post-filter, as
+        # every echo canceller has): per bin, the share of what is left that the echo estimate says is ours
+        gain = np.clip(1.0 - self.suppress * self._echo_power / (self._error_power + 1e-9), 0.05, 1.0)
+        return np.fft.irfft(e * gain)[b:]
 
 
 class PlayedEcho:
