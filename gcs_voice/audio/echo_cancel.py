@@ -38,7 +38,7 @@ class EchoCanceller:
     """
 
     def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
-                 min_step: float = 0.35, regularization: float = 0.1, suppress: float = 1.0) -> None:
+                 min_step: float = 0.5, regularization: float = 0.1, suppress: float = 1.0) -> None:
         if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
             raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
                              f"length_s {length_s} above 0")
