@@ -20,6 +20,7 @@ import numpy as np
 
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.amounts import DISTANCE_MOTIONS, HEIGHT_MOTIONS, TURNS, number_words, vocabulary
 from tools.bench_real import pct, recognise_one
 from tools.make_corpus import mix_at_snr, read_wav, synthesise
@@ -56,6 +57,19 @@ def plan(lang: str, rng: np.random.Generator) -> list[tuple[str, str, int, str, 
             items.append((f"{phrase.text} {TO_WORD[lang]} {number_words(goal, lang)} {UNIT_WORDS[lang]['m'][0]}",
                           phrase.action, goal, "m", True))
     return items
+
+
+def outcome(decision: Decision, action: str, value: int, unit: str, height: bool) -> str:
+    """right (class and amount), wrong class, wrong amount (the class right but another amount, or none: an
+    open-ended motion for a bounded one) or no action."""
+    if decision.action is None:
+        return "no action"
+    if decision.action != action:
+        return "wrong class"
+    amount = decision.amount
+    if amount is None or (amount.value, amount.unit, amount.height) != (value, unit, height):
+        return "wrong amount"
+    return "right"
 
 
 def speak(voice: str, text: str, wpm: int, piper: dict) -> np.ndarray:
@@ -101,14 +115,7 @@ def main(argv: list[str] | None = None) -> int:
                     result, seconds = recognise_one(recognizer, audio, lang)
                     times.append(seconds)
                     d = matcher.decide(result, [dictionary])
-                    if d.action is None:
-                        kind = "no action"
-                    elif d.action != action:
-                        kind = "wrong class"
-                    elif d.amount is None or (d.amount.value, d.amount.unit, d.amount.height) != (value, unit, height):
-                        kind = "wrong amount"
-                    else:
-                        kind = "right"
+                    kind = outcome(d, action, value, unit, height)
                     counts[kind] += 1
                     if kind in ("wrong class", "wrong amount"):
                         wrongs.append(f"| {text} | {voice} | {condition} | {d.label} | {result.transcript} |")

@@ -25,6 +25,7 @@ import numpy as np
 
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+from tools.bench_amounts import outcome
 from tools.bench_real import pct, recognise_one
 from tools.make_corpus import mix_at_snr, read_wav
 from tools.real_speech import SHARED, load_recordings
@@ -94,14 +95,7 @@ def main(argv: list[str] | None = None) -> int:
                                    12.0)
             result, _seconds = recognise_one(recognizer, audio, "en")
             d = matcher.decide(result, [dictionary])
-            if d.action is None:
-                kind = "no action"
-            elif d.action != action:
-                kind = "wrong class"
-            elif d.amount is None or (d.amount.value, d.amount.unit, d.amount.height) != (value, "m", False):
-                kind = "wrong amount"
-            else:
-                kind = "right"
+            kind = outcome(d, action, value, "m", False)
             counts[kind] += 1
             said = f"{command.name} + {digit.name} ({action} {value} m)"
             if kind in ("wrong class", "wrong amount"):
