@@ -24,11 +24,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
-
 from gcs_voice.session.flight_log import read_flight
 from gcs_voice.session.sim_process import free_udp_port
-from tools.make_corpus import synthesise
+from tools.make_demo_audio import synthesize
 from tools.soak_two_stations import PX4_START, SITL_START, _start_sitl
 
 REPO = Path(__file__).resolve().parent.parent
@@ -37,16 +35,7 @@ RTL_MODES = {"arducopter-sitl": 6, "px4-sitl": 84148224}  # ArduCopter RTL; PX4 
 
 
 def _wav(path: Path, text: str) -> Path:
-    import wave
-
-    samples = synthesise(text, "en-us", 175)
-    pad = np.zeros(int(0.3 * 16_000), np.float32)
-    pcm = (np.clip(np.concatenate([pad, samples, pad]), -1, 32767 / 32768) * 32768).astype("<i2")
-    with wave.open(str(path), "wb") as w:
-        w.setnchannels(1)
-        w.setsampwidth(2)
-        w.setframerate(16_000)
-        w.writeframes(pcm.tobytes())
+    path.write_bytes(synthesize(text, "en-us", 175))  # the demo's own espeak-ng rendering, 0.3 s either side
     return path
 
 
