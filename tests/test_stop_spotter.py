@@ -58,3 +58,22 @@ def test_spanish_stop_words_get_their_own_pronunciations():
     assert sorted(spotter.words) == sorted(["para_es", "alto_es", "detente_es", "quieto_es"])
     # the English dictionary's "para" (P EH R AH) is not the one spotted
     assert spotter.decoder.lookup_word("para_es") == "P AA R AA"
+
+
+def test_over_the_bridge_voice_it_is_stricter_and_the_usual_search_comes_back(real_speech_dir):
+    """Audio heard while the bridge speaks is spotted with ``over_voice_threshold``; the next utterance, with the
+    usual threshold again. The stop words fire at the usual threshold's 1e-15 and mostly not at 1e-3."""
+    strict = load_stop_spotter(["en"], over_voice_thresholds={"en": 1e-3})
+    stops = [read_wav(p) for p in _held_out(real_speech_dir, "stop")]
+    usual = [strict.spot(pcm).fired for pcm in stops]
+    over = [strict.spot(pcm, over_voice=True).fired for pcm in stops]
+    again = [strict.spot(pcm).fired for pcm in stops]
+    assert sum(over) < sum(usual) - 3, (usual, over)
+    assert again == usual  # one search per stream: the stricter one does not stay on
+    import tomllib
+
+    from gcs_voice.asr.stop_spotter import SETTINGS_PATH
+
+    shipped = tomllib.loads(SETTINGS_PATH.read_text(encoding="utf-8"))
+    for lang in ("en", "es"):  # stricter over the bridge's voice in every language
+        assert shipped[lang]["over_voice_threshold"] > shipped[lang]["threshold"], lang

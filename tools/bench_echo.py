@@ -64,7 +64,7 @@ def every_cue(lang: str = "en") -> list[tuple[str, str]]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.asr.stop_spotter import StopSpotter, load_stop_spotter
     from gcs_voice.audio.echo_cancel import EchoCanceller
     from gcs_voice.audio.sounds import Speech, tone
     from gcs_voice.audio.sources import read_wav
@@ -82,12 +82,17 @@ def main(argv: list[str] | None = None) -> int:
                         help="whose stops: dev (choose the canceller's settings on) or test (report)")
     parser.add_argument("--cancel", default="", help="canceller settings to compare, KEY=VALUE[;KEY=VALUE...] "
                         "separated by commas (default: the shipped [echo] of sounds.toml)")
+    parser.add_argument("--over-voice-thresholds", default="",
+                        help="the spotter's thresholds while the bridge speaks to compare, comma-separated "
+                             "(default: the shipped over_voice_threshold of stop_spotter.toml)")
     parser.add_argument("--speech", type=Path, default=SHARED / "speech")
     parser.add_argument("--rounds", type=int, default=3, help="times every cue is played, in a new order each")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     args = parser.parse_args(argv)
 
     spotter = load_stop_spotter(["en"])
+    strict = [float(v) for v in args.over_voice_thresholds.split(",")] if args.over_voice_thresholds else [None]
+    over_voice = [load_stop_spotter(["en"], over_voice_thresholds=None if t is None else {"en": t}) for t in strict]
     s = load_sound_settings()
     settings = ([dict((k, float(v)) for k, v in (kv.split("=") for kv in group.split(";"))) for group in args.cancel.split(",")]
                 if args.cancel else [s.echo_cancel or {}])
@@ -105,15 +110,21 @@ def main(argv: list[str] | None = None) -> int:
         """What the microphone picks up of what the speaker plays: late, reverberated."""
         return np.concatenate([np.zeros(delay), np.convolve(y, response)])
 
-    def spotted(x: np.ndarray) -> bool:
-        return spotter.spot(np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()).fired
+    def spotted(x: np.ndarray, over: StopSpotter | None = None) -> bool:
+        """Whether the spotter fires: on a stop alone (the usual threshold), or over the bridge's voice."""
+        pcm = np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()
+        return spotter.spot(pcm).fired if over is None else over.spot(pcm, over_voice=True).fired
 
     stops = [(r.path.name, np.frombuffer(read_wav(r.path), "<i2").astype(np.float64))
              for r in load_recordings(args.speech, split=args.split) if r.action == "stop"]
     alone = [x for _name, x in stops if spotted(x)]
     levels = [float(v) for v in args.levels.split(",")]
-    labels = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                                   f" ({how})" for c in settings for how in ("cold", "warm")]
+    def named(label: str, t: float | None) -> str:
+        return label if len(strict) == 1 else f"{label}, over-voice threshold {t:g}"
+
+    per = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
+                                f" ({how})" for c in settings for how in ("cold", "warm")]
+    labels = [named(label, t) for t in strict for label in per]
     rows = []
     for level in levels:
         hits = [0] * len(labels)
@@ -126,9 +137,9 @@ def main(argv: list[str] | None = None) -> int:
             mic[:echo.size] += echo
             mic[at:at + x.size] += x
             reference[:voice.size] = voice * gain
-            hits[0] += spotted(mic)
-            for i, c in enumerate(settings):
-                for j, warm in enumerate((False, True)):
+            outs = [mic]
+            for c in settings:
+                for warm in (False, True):
                     canceller = EchoCanceller(**c)
                     if warm:  # the bridge said something earlier in the session: the filter has heard the room
                         e = room(warm_voice * gain)
@@ -136,7 +147,10 @@ def main(argv: list[str] | None = None) -> int:
                         m[:e.size], r[:warm_voice.size] = e, warm_voice * gain
                         canceller.process(m, r)
                         canceller.drop_pending()  # the cue is a clip of its own, not the earlier one's continuation
-                    hits[1 + 2 * i + j] += spotted(canceller.process(mic, reference))
+                    outs.append(canceller.process(mic, reference))
+            for k, over in enumerate(over_voice):
+                for i, out in enumerate(outs):
+                    hits[k * len(outs) + i] += spotted(out, over)
         rows.append(f"| {level:+g} dB | " + " | ".join(f"{h}/{len(alone)}" for h in hits) + " |")
         print(rows[-1], flush=True)
     # The bridge's own cues alone (no pilot): a stop the spotter fires on them stops the vehicle for nothing.
@@ -146,13 +160,13 @@ def main(argv: list[str] | None = None) -> int:
     cues = every_cue()
     pilot_dbfs = float(np.median([voiced_dbfs(x) for x in alone])) if alone else -26.0
     rendered = []
-    for tone_name, words in cues:
+    for tone_name, cue_words in cues:
         pcm = tone(s.tones[tone_name], s.amplitude, s.fade_s)
-        if words:
-            pcm += bytes(int(0.05 * RATE) * 2) + Speech("en-us", s.speed_wpm).say(words)
+        if cue_words:
+            pcm += bytes(int(0.05 * RATE) * 2) + Speech("en-us", s.speed_wpm).say(cue_words)
         x = np.frombuffer(pcm, "<i2").astype(np.float64)
         rendered.append(x * 10 ** ((pilot_dbfs - voiced_dbfs(x)) / 20))
-    false_stops = [0] * (1 + len(settings))
+    false_stops = [0] * ((1 + len(settings)) * len(over_voice))
     cancellers = [EchoCanceller(**c) for c in settings]
     for _round in range(args.rounds):
         for i in rng.permutation(len(rendered)):
@@ -162,19 +176,25 @@ def main(argv: list[str] | None = None) -> int:
             mic, reference = rng.normal(0.0, 20.0, n), np.zeros(n)
             mic[:echo.size] += echo
             reference[:x.size] = x
-            false_stops[0] += spotted(mic)
-            for j, canceller in enumerate(cancellers):
+            outs = [mic]
+            for canceller in cancellers:
                 canceller.drop_pending()
-                false_stops[1 + j] += spotted(canceller.process(mic, reference))
+                outs.append(canceller.process(mic, reference))
+            for k, over in enumerate(over_voice):
+                for j, out in enumerate(outs):
+                    false_stops[k * len(outs) + j] += spotted(out, over)
     played = args.rounds * len(rendered)
-    false_labels = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                                         for c in settings]
+    false_labels = [named(label, t) for t in strict for label in
+                    ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
+                                          for c in settings]]
     false_row = "| stops fired | " + " | ".join(f"{n}/{played}" for n in false_stops) + " |"
     print(false_row, flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
     command = (f"python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
-               + (f" --cancel '{args.cancel}'" if args.cancel else "") + (f" --out {args.out}" if args.out else ""))
+               + (f" --cancel '{args.cancel}'" if args.cancel else "")
+               + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")
+               + (f" --out {args.out}" if args.out else ""))
     path = (f"reverberated by a statistical room (RT60 {args.rt60:g} s, direct-to-reverberant {args.drr_db:g} dB, "
             "`room_response` in the tool)" if args.rt60 > 0 else "the direct path only, no room")
     report = "\n".join([

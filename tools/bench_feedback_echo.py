@@ -34,6 +34,8 @@ ROOT = Path(__file__).resolve().parent.parent
 RATE = 16_000
 #: an utterance or a spot within this of a pilot's clip is the pilot's (the segmenter's pre-roll and padding)
 MARGIN_S = 0.5
+#: a spot over the bridge's voice is the pilot's if the pilot's voiced speech is within this of what it heard
+VOICE_MARGIN_S = 0.1
 
 
 def _bridge_level_dbfs() -> float:
@@ -97,12 +99,28 @@ def main(argv: list[str] | None = None) -> int:
     own_rejected = [e for e in rejected if e.get("utterance_end_t") in own_ends]
     commands = [e for e in events if e["kind"] == "command" and e.get("origin") == "voice"]
     own_commands = [e for e in commands if e.get("utterance_end_t") in own_ends]
-    spotted = [e for e in events if e["kind"] == "spotted"]
-    own_spotted = [e for e in spotted if not pilot(e["spotted_t"] - t0 - 1.0, e["spotted_t"] - t0)]
     said = [e for e in events if e["kind"] == "feedback" and e["played_t"] >= t0]  # (before: no microphone yet)
+    spotted = [e for e in events if e["kind"] == "spotted"]
+
+    def spot_is_pilots(e: dict) -> bool:
+        """A spot over the bridge's voice decided on the audio from the bridge's sound on: the pilot's only if
+        the pilot's voice is in it. Any other spot: the pilot's if a clip is within a second before it."""
+        t = e["spotted_t"] - t0
+        if not e.get("over_voice"):
+            return pilot(t - 1.0, t)
+        began = max((f["played_t"] - t0 for f in said if f["played_t"] - t0 <= t), default=t - 1.0) - VOICE_MARGIN_S
+        return any(p.voiced_start_s - VOICE_MARGIN_S <= t and began <= p.voiced_end_s + VOICE_MARGIN_S
+                   for p in placed)
+
+    own_spotted = [e for e in spotted if not spot_is_pilots(e)]
+    over_spotted = [e for e in spotted if e.get("over_voice")]
+    own_over = [e for e in own_spotted if e.get("over_voice")]
     deaf = [(e["played_t"] - t0, e["played_t"] - t0 + e["seconds"] + 0.4) for e in said]
     over = [p for p in placed if any(a <= p.voiced_end_s and p.voiced_start_s <= b for a, b in deaf)]
     over_commands = [p for p in over if p.clip.action]
+    over_stops = [p for p in over_commands if p.clip.action == "stop"]
+    heard_stops = [p for p in over_stops
+                   if any(p.voiced_start_s <= e["spotted_t"] - t0 <= p.voiced_end_s + 1.0 for e in over_spotted)]
     by_tone: dict[str, int] = {}
     for e in said:
         by_tone[e["tone"]] = by_tone.get(e["tone"], 0) + 1
@@ -130,9 +148,15 @@ def main(argv: list[str] | None = None) -> int:
         f"| actions (voice) | {len(commands)} | {len(own_commands)} |",
         f"| rejections | {len(rejected)} | {len(own_rejected)} |",
         f"| stops fired by the spotter | {len(spotted)} | {len(own_spotted)} |",
+        f"| of them over the bridge's voice (the stricter threshold) | {len(over_spotted)} | {len(own_over)} |",
+        "",
+        "A stop over the bridge's voice is put down to the pilot only if the pilot's voiced speech (within "
+        f"{VOICE_MARGIN_S:g} s) is in the audio the spotter heard from the bridge's sound on; any other stop if a "
+        f"clip ends within {MARGIN_S:g} s of the second before it.",
         "",
         f"The pilot's clips said while the bridge was speaking (its sound + 0.4 s): {len(over)} of {len(placed)}, "
-        f"{len(over_commands)} of them commands (not heard as commands then: only a stop is).",
+        f"{len(over_commands)} of them commands (not heard as commands then: only a stop is); "
+        f"{len(over_stops)} of them a stop, {len(heard_stops)} of those spotted over the bridge's voice.",
         "",
         f"Load average after the run: {_load()} (2 CPUs).",
         "",

@@ -24,6 +24,7 @@ from gcs_voice.errors import ModelError
 __all__ = ["StopSpotter", "StopHit", "SpotStream", "load_stop_spotter", "SETTINGS_PATH"]
 
 SETTINGS_PATH = Path(__file__).resolve().parent / "stop_spotter.toml"
+SEARCH, OVER_VOICE_SEARCH = "stop", "stop_over_voice"
 
 
 @dataclass(frozen=True)
@@ -42,22 +43,25 @@ class StopSpotter:
     """Keyword spotting over one utterance of 16 kHz mono s16le PCM; thread-safe (one decoder, a lock)."""
 
     def __init__(self, languages: list[str], settings_path: Path = SETTINGS_PATH,
-                 thresholds: dict[str, float] | None = None, words: list[str] | None = None) -> None:
+                 thresholds: dict[str, float] | None = None, words: list[str] | None = None,
+                 over_voice_thresholds: dict[str, float] | None = None) -> None:
         from pocketsphinx import Decoder
 
         with open(settings_path, "rb") as f:
             data = tomllib.load(f)
-        lines, phones = [], {}
+        lines, over_voice, phones = [], [], {}
         for lang in languages:
             if lang not in data:
                 continue
             section = data[lang]
             threshold = (thresholds or {}).get(lang, float(section["threshold"]))
+            strict = (over_voice_thresholds or {}).get(lang, float(section.get("over_voice_threshold", threshold)))
             for word in (words if words is not None else section["words"]):
                 token = f"{word}_{lang}" if word in section.get("phones", {}) else word
                 if token != word:
                     phones[token] = section["phones"][word]
                 lines.append(f"{token} /{threshold:g}/")
+                over_voice.append(f"{token} /{strict:g}/")
         if not lines:
             raise ModelError(f"the stop spotter has no words for {', '.join(languages) or 'no language'}")
         try:
@@ -69,26 +73,30 @@ class StopSpotter:
         missing = [line.split()[0] for line in lines if self.decoder.lookup_word(line.split()[0]) is None]
         if missing:
             raise ModelError(f"stop spotter words without pronunciation: {', '.join(missing)}")
-        with tempfile.NamedTemporaryFile("w", suffix=".kws", delete=False) as f:
-            f.write("\n".join(lines) + "\n")
-            kws_file = f.name
-        try:
-            self.decoder.add_kws("stop", kws_file)
-        finally:
-            Path(kws_file).unlink(missing_ok=True)
-        self.decoder.activate_search("stop")
+        # Two searches over the same words: the usual one, and a stricter one for what the microphone hears
+        # while the bridge itself speaks (what the echo canceller leaves of its words can sound like "stay")
+        for search, search_lines in ((SEARCH, lines), (OVER_VOICE_SEARCH, over_voice)):
+            with tempfile.NamedTemporaryFile("w", suffix=".kws", delete=False) as f:
+                f.write("\n".join(search_lines) + "\n")
+                kws_file = f.name
+            try:
+                self.decoder.add_kws(search, kws_file)
+            finally:
+                Path(kws_file).unlink(missing_ok=True)
+        self.decoder.activate_search(SEARCH)
         self.words = [line.split()[0] for line in lines]
         self._lock = threading.Lock()
 
-    def spot(self, pcm: bytes) -> StopHit:
-        """Whether a stop word is anywhere in this utterance (decoded whole)."""
-        stream = self.start_stream()
+    def spot(self, pcm: bytes, over_voice: bool = False) -> StopHit:
+        """Whether a stop word is anywhere in this utterance (decoded whole); ``over_voice``: heard while the
+        bridge itself was speaking (the stricter threshold)."""
+        stream = self.start_stream(over_voice)
         stream.accept(pcm)
         return stream.finish()
 
-    def start_stream(self) -> SpotStream:
+    def start_stream(self, over_voice: bool = False) -> SpotStream:
         """Spot while the utterance is still arriving: ``accept`` says as soon as a stop word is heard."""
-        return SpotStream(self)
+        return SpotStream(self, over_voice)
 
 
 def _word(hyp: object) -> str | None:
@@ -102,8 +110,9 @@ class SpotStream:
     ``finish`` decodes the same whole utterance as ``spot`` does: the stream only decides earlier.
     """
 
-    def __init__(self, spotter: StopSpotter) -> None:
+    def __init__(self, spotter: StopSpotter, over_voice: bool = False) -> None:
         self.spotter = spotter
+        self.over_voice = over_voice
         self.word: str | None = None
         self.ms = 0.0
         self._open = False
@@ -118,6 +127,7 @@ class SpotStream:
         if not self._open:
             self.spotter._lock.acquire()
             self._open = True
+            d.activate_search(OVER_VOICE_SEARCH if self.over_voice else SEARCH)
             d.reinit_feat()  # fresh features: set_cmn alone left state behind (same audio, other words)
             d.start_utt()
         d.process_raw(pcm, False, False)
@@ -144,9 +154,10 @@ class SpotStream:
 
 
 def load_stop_spotter(languages: list[str], thresholds: dict[str, float] | None = None,
-                      words: list[str] | None = None) -> StopSpotter:
+                      words: list[str] | None = None,
+                      over_voice_thresholds: dict[str, float] | None = None) -> StopSpotter:
     """The stop spotter for these dictionary languages (English and Spanish words; others are ignored).
 
     ``thresholds`` (per language) and ``words`` override ``stop_spotter.toml`` (for the benchmark's sweep).
     """
-    return StopSpotter(languages, thresholds=thresholds, words=words)
+    return StopSpotter(languages, thresholds=thresholds, words=words, over_voice_thresholds=over_voice_thresholds)

@@ -46,7 +46,9 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                           on_tentative: Callable[[bytes], None] | None = None,
                           chunks: Iterable[AudioChunk] | None = None,
                           deaf: Callable[[float, float], bool] | None = None,
-                          clean: Callable[[float, bytes], bytes] | None = None) -> Iterator[tuple[bytes, float]]:
+                          clean: Callable[[float, bytes], bytes] | None = None,
+                          on_speech_over_voice: Callable[[bytes | None], None] | None = None
+                          ) -> Iterator[tuple[bytes, float]]:
     """(PCM, UNIX time the speech ended) per utterance, until the consumer stops.
 
     ``talk`` is the push-to-talk key (None: always listening): while it is clear, silence is fed.
@@ -54,11 +56,14 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
     PCM as soon as it is final if no speech follows (see ``segment_utterances``). ``chunks`` replaces the
     microphone (``gcs_voice.audio.sources.paced_chunks``: a recording heard as if spoken now).
     ``deaf(from_t, to_t)`` says whether audio captured then (UNIX times) may be the bridge's own sound;
-    ``clean(start_t, pcm)`` takes the bridge's own sound out of what the listener hears while deaf.
+    ``clean(start_t, pcm)`` takes the bridge's own sound out of what the listener hears while deaf, and
+    ``on_speech_over_voice`` (default ``on_speech``) hears that deaf time's audio, as a stream of its own: it is
+    judged more strictly, since what is left of the bridge's words can sound like a stop word.
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
 
+    over_voice = on_speech_over_voice or on_speech
     t0: list[float] = []
     #: captured (UNIX time of its first sample) = captured_t0 + chunk.start_s; a chunk arrives once captured
     captured_t0: list[float] = []
@@ -74,11 +79,13 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
             elif deaf is not None:
                 start_t = captured_t0[0] + chunk.start_s
                 was, deaf_now[0] = deaf_now[0], deaf(start_t, start_t + chunk.duration_s)
-                if was and not deaf_now[0] and on_speech is not None:
-                    on_speech(None)  # the deaf time's audio ends: the listener decides on it
+                if was != deaf_now[0] and on_speech is not None:
+                    # one stream ends where the other starts: the segmenter's speech so far when the bridge
+                    # starts to speak, the deaf time's audio when it has finished; the listener decides on each
+                    (over_voice if was else on_speech)(None)
                 if deaf_now[0]:
                     if on_speech is not None:
-                        on_speech(clean(start_t, chunk.pcm) if clean is not None else chunk.pcm)
+                        over_voice(clean(start_t, chunk.pcm) if clean is not None else chunk.pcm)
                     chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 

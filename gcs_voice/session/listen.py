@@ -67,32 +67,36 @@ class StopPath:
         self._stream: SpotStream | None = None
         self._fired = False
 
-    def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None) -> None:
+    def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None, over_voice: bool = False) -> None:
+        """``over_voice``: heard while the bridge itself was speaking (the spotter's stricter threshold)."""
         if pcm is None:
             self.end(bridge, end_t)
             return
+        if self._stream is not None and self._stream.over_voice != over_voice:
+            self.end(bridge)  # the bridge started or stopped speaking: what came before is decided on its own
         if self._stream is None:
-            self._stream, self._fired = self.spotter.start_stream(), False
+            self._stream, self._fired = self.spotter.start_stream(over_voice), False
         word = self._stream.accept(pcm)
         if word and not self._fired:
             self._fired = True
-            self._stop(bridge, word, None, during=True)
+            self._stop(bridge, word, None, during=True, over_voice=over_voice)
 
     def end(self, bridge: Bridge, end_t: float | None = None) -> str | None:
         """The utterance is over: stop now if a stop word was in it (and not already sent); the word."""
         if self._stream is None:
             return None
-        hit = self._stream.finish()
-        self._stream = None
+        stream, self._stream = self._stream, None
+        hit = stream.finish()
         if hit.fired and not self._fired:
-            self._stop(bridge, hit.word, end_t, during=False)
+            self._stop(bridge, hit.word, end_t, during=False, over_voice=stream.over_voice)
         self._fired = False
         return hit.word
 
-    def _stop(self, bridge: Bridge, word: str | None, end_t: float | None, during: bool) -> None:
+    def _stop(self, bridge: Bridge, word: str | None, end_t: float | None, during: bool, over_voice: bool) -> None:
         now = time.time()
-        self.bus.emit("spotted", f"stop word {word!r} heard{' (still speaking)' if during else ''}: stopping now",
-                      word=word, utterance_end_t=end_t, spotted_t=now)
+        where = " over the bridge's voice" if over_voice else ""
+        self.bus.emit("spotted", f"stop word {word!r} heard{where}{' (still speaking)' if during else ''}: stopping now",
+                      word=word, utterance_end_t=end_t, spotted_t=now, over_voice=over_voice)
         request = bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
         # Wait (a few ms) until the bridge has sent it: the main recogniser that runs next may hold the
         # interpreter for a second (PocketSphinx decodes without releasing the GIL) and starve the bridge.

@@ -298,12 +298,14 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
 
             stop_path = pipeline.stop_path
             on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
+            over_voice = (lambda pcm: stop_path.feed(bridge, pcm, over_voice=True)) if stop_path is not None else None
             tentatives = TentativeUtterances()  # decided while the closing silence runs out
             if listen_pcm is None:
                 start_voice_thread(bridge, run_microphone, pipeline, bridge,
                                    microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
                                                          on_tentative=tentatives,
-                                                         deaf=gate.deaf if gate is not None else None, clean=clean),
+                                                         deaf=gate.deaf if gate is not None else None, clean=clean,
+                                                         on_speech_over_voice=over_voice),
                                    stop_path is not None, tentatives)
             else:
                 from gcs_voice.audio.sources import AudioChunk, paced_chunks
@@ -324,7 +326,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                 start_voice_thread(bridge, run_recording, pipeline, bridge,
                                    microphone_utterances(on_speech=on_speech, on_tentative=tentatives,
                                                          chunks=recording(),
-                                                         deaf=gate.deaf if gate is not None else None, clean=clean),
+                                                         deaf=gate.deaf if gate is not None else None, clean=clean,
+                                                         on_speech_over_voice=over_voice),
                                    stop_path is not None, tentatives, config.hold_s)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
