@@ -18,11 +18,13 @@ pilot's clips said while the bridge was speaking (deaf to commands then: only a 
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import subprocess
 import sys
 import tempfile
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -48,10 +50,25 @@ def _bridge_level_dbfs() -> float:
     return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0]))
 
 
-def main(argv: list[str] | None = None) -> int:
-    from gcs_voice.session.sim_process import BundledSim
-    from gcs_voice.session.session_log import read_session_log
+@dataclass(frozen=True)
+class Clip:
+    """A placed clip of the stream as stream.tsv keeps it: where it is and its voiced part, s; its action."""
 
+    start_s: float
+    end_s: float
+    voiced_start_s: float
+    voiced_end_s: float
+    action: str | None
+
+
+def read_clips(path: Path) -> list[Clip]:
+    """The clips of a stream's truth file (``tools.bench_stream.write_truth``)."""
+    with open(path, encoding="utf-8") as f:
+        return [Clip(float(r["start_s"]), float(r["end_s"]), float(r["voiced_start_s"]), float(r["voiced_end_s"]),
+                     None if r["truth"] == "none" else r["truth"]) for r in csv.DictReader(f, delimiter="\t")]
+
+
+def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--minutes", type=float, default=30.0)
     parser.add_argument("--seed", type=int, default=1)
@@ -60,10 +77,34 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--engine", default="whisper")
     parser.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     parser.add_argument("--work", type=Path, help="keep the stream and the logs here")
+    parser.add_argument("--reanalyse", type=Path, metavar="WORK",
+                        help="no session: count again from an earlier run's --work directory (stream.tsv, "
+                             "session.jsonl; give the run's --seed, --echo-db and --delay-ms for the report's text)")
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
 
-    work = args.work or Path(tempfile.mkdtemp(prefix="bench-feedback-echo-"))
+    shown = " ".join(["python -m tools.bench_feedback_echo", f"--minutes {args.minutes:g}", f"--seed {args.seed}",
+                      f"--echo-db {args.echo_db:g}", f"--delay-ms {args.delay_ms:g}", f"--engine {args.engine}"]
+                     + ([f"--out {args.out}"] if args.out and args.reanalyse is None else []))
+    if args.reanalyse is not None:
+        again = " ".join(["python -m tools.bench_feedback_echo --reanalyse", str(args.reanalyse)]
+                         + ([f"--seed {args.seed}"] if args.seed != 1 else []) + ([f"--out {args.out}"] if args.out else []))
+        work, took = args.reanalyse, f"Counted again from the logs of an earlier run: `{again}`."
+    else:
+        work = args.work or Path(tempfile.mkdtemp(prefix="bench-feedback-echo-"))
+        took = run_session(args, work)
+    report = analyse(work, shown, took, args.echo_db, args.delay_ms, args.seed, args.engine)
+    print(report)
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text(report, encoding="utf-8")
+    return 0
+
+
+def run_session(args: argparse.Namespace, work: Path) -> str:
+    """Build the stream into ``work`` and fly it once with the cues mixed back; what it took, as a sentence."""
+    from gcs_voice.session.sim_process import BundledSim
+
     work.mkdir(parents=True, exist_ok=True)
     clips = load_recordings(SHARED / "speech", split="test")
     count = max(1, int(args.minutes * 60 / 5.8))  # ~1.5 s of speech and ~4.3 s of pause each
@@ -84,7 +125,19 @@ def main(argv: list[str] | None = None) -> int:
     took_s = time.monotonic() - started
     if done.returncode != 0:
         raise SystemExit(f"the session failed ({done.returncode}): {done.stderr.strip()[-600:]}")
+    (work / "feedback_echo.txt").write_text(f"--feedback-echo={gain_db:.1f}:{args.delay_ms:g}\n", encoding="utf-8")
+    return f"Wall time {took_s / 60:.1f} min; machine shared (load in the note below)."
+
+
+def analyse(work: Path, shown: str, took: str, echo_db: float, delay_ms: float, seed: int, engine: str) -> str:
+    """The report for a flown session's logs in ``work``: what was heard, acted on, rejected and spotted, and
+    whether the pilot or the bridge's own audio caused it."""
+    from gcs_voice.session.feedback import load_sound_settings
+    from gcs_voice.session.session_log import read_session_log
+
+    placed = read_clips(work / "stream.tsv")
     events = read_session_log(work / "session.jsonl")
+    tail_s = load_sound_settings().tail_s
     t0 = next(e["audio_t0"] for e in events if e.get("phase") == "listening")
     spans = [(p.start_s - MARGIN_S, p.end_s + MARGIN_S) for p in placed]
 
@@ -100,46 +153,63 @@ def main(argv: list[str] | None = None) -> int:
     commands = [e for e in events if e["kind"] == "command" and e.get("origin") == "voice"]
     own_commands = [e for e in commands if e.get("utterance_end_t") in own_ends]
     said = [e for e in events if e["kind"] == "feedback" and e["played_t"] >= t0]  # (before: no microphone yet)
+    deaf = [(e["played_t"] - t0, e["played_t"] - t0 + e["seconds"] + tail_s) for e in said]
     spotted = [e for e in events if e["kind"] == "spotted"]
+    # a log of before the over_voice field: a stop spotted while the microphone was deaf was spotted over the voice
+    inferred = any("over_voice" not in e for e in spotted)
+
+    def over_voice(e: dict) -> bool:
+        if "over_voice" in e:
+            return bool(e["over_voice"])
+        t = e["spotted_t"] - t0
+        return any(a <= t <= b for a, b in deaf)
 
     def spot_is_pilots(e: dict) -> bool:
         """A spot over the bridge's voice decided on the audio from the bridge's sound on: the pilot's only if
         the pilot's voice is in it. Any other spot: the pilot's if a clip is within a second before it."""
         t = e["spotted_t"] - t0
-        if not e.get("over_voice"):
+        if not over_voice(e):
             return pilot(t - 1.0, t)
         began = max((f["played_t"] - t0 for f in said if f["played_t"] - t0 <= t), default=t - 1.0) - VOICE_MARGIN_S
         return any(p.voiced_start_s - VOICE_MARGIN_S <= t and began <= p.voiced_end_s + VOICE_MARGIN_S
                    for p in placed)
 
     own_spotted = [e for e in spotted if not spot_is_pilots(e)]
-    over_spotted = [e for e in spotted if e.get("over_voice")]
-    own_over = [e for e in own_spotted if e.get("over_voice")]
-    deaf = [(e["played_t"] - t0, e["played_t"] - t0 + e["seconds"] + 0.4) for e in said]
+    over_spotted = [e for e in spotted if over_voice(e)]
+    own_over = [e for e in own_spotted if over_voice(e)]
     over = [p for p in placed if any(a <= p.voiced_end_s and p.voiced_start_s <= b for a, b in deaf)]
-    over_commands = [p for p in over if p.clip.action]
-    over_stops = [p for p in over_commands if p.clip.action == "stop"]
+    over_commands = [p for p in over if p.action]
+    over_stops = [p for p in over_commands if p.action == "stop"]
+    heard_over = [p for p in over_stops
+                  if any(p.voiced_start_s <= e["spotted_t"] - t0 <= p.voiced_end_s + 1.0 for e in over_spotted)]
     heard_stops = [p for p in over_stops
-                   if any(p.voiced_start_s <= e["spotted_t"] - t0 <= p.voiced_end_s + 1.0 for e in over_spotted)]
+                   if any(p.voiced_start_s <= e["spotted_t"] - t0 <= p.voiced_end_s + 1.0 for e in spotted)]
     by_tone: dict[str, int] = {}
     for e in said:
         by_tone[e["tone"]] = by_tone.get(e["tone"], 0) + 1
-    minutes = stream.size / RATE / 60
-    shown = " ".join(["python -m tools.bench_feedback_echo", f"--minutes {args.minutes:g}", f"--seed {args.seed}",
-                      f"--echo-db {args.echo_db:g}", f"--delay-ms {args.delay_ms:g}", f"--engine {args.engine}"]
-                     + ([f"--out {args.out}"] if args.out else []))
-    report = "\n".join([
+    # which of the bridge's own sounds the spotter fired on
+    by_cue: dict[str, list[int]] = {}
+    for e in said:
+        words = e["msg"].split(": ", 1)[-1]
+        fired = any(e["played_t"] - t0 <= s["spotted_t"] - t0 <= e["played_t"] - t0 + e["seconds"] + tail_s
+                    for s in own_over)
+        by_cue.setdefault(words, [0, 0])
+        by_cue[words][0] += 1
+        by_cue[words][1] += fired
+    minutes = max(p.end_s for p in placed) / 60 if placed else 0.0
+    echo_file = work / "feedback_echo.txt"
+    echo = echo_file.read_text(encoding="utf-8").strip() if echo_file.exists() else f"--feedback-echo=DB:{delay_ms:g}"
+    lines = [
         "# The bridge's own speech in its microphone",
         "",
         f"Command: `{shown}`",
         "",
         f"Stream: {len(placed)} real utterances of the held-out test speakers of ../shared/speech "
-        f"({sum(1 for p in placed if p.clip.action)} commands, the rest other words and sentences), random pauses "
-        f"2-6.5 s (seed {args.seed}), {minutes:.1f} min, clean, each at {SPEECH_DBFS:g} dBFS over its voiced part. "
-        f"Session: `gcs-voice --listen-wav` (real time, Silero segmenter, stop spotter, {args.engine}) flying the "
-        f"bundled simulator (ArduPilot, open field), `--feedback speech --feedback-echo={gain_db:.1f}:{args.delay_ms:g}`: "
-        f"every cue played back into the microphone {args.echo_db:+g} dB relative to the pilot's voiced level, "
-        f"{args.delay_ms:g} ms late. Wall time {took_s / 60:.1f} min; machine shared (load in the note below).",
+        f"({sum(1 for p in placed if p.action)} commands, the rest other words and sentences), random pauses "
+        f"2-6.5 s (seed {seed}), {minutes:.1f} min, clean, each at {SPEECH_DBFS:g} dBFS over its voiced part. "
+        f"Session: `gcs-voice --listen-wav` (real time, Silero segmenter, stop spotter, {engine}) flying the "
+        f"bundled simulator (ArduPilot, open field), `--feedback speech {echo}`: every cue played back into the "
+        f"microphone {echo_db:+g} dB relative to the pilot's voiced level, {delay_ms:g} ms late. {took}",
         "",
         "| | total | caused by the bridge's own audio |",
         "| --- | --- | --- |",
@@ -148,26 +218,31 @@ def main(argv: list[str] | None = None) -> int:
         f"| actions (voice) | {len(commands)} | {len(own_commands)} |",
         f"| rejections | {len(rejected)} | {len(own_rejected)} |",
         f"| stops fired by the spotter | {len(spotted)} | {len(own_spotted)} |",
-        f"| of them over the bridge's voice (the stricter threshold) | {len(over_spotted)} | {len(own_over)} |",
+        f"| of them over the bridge's voice | {len(over_spotted)} | {len(own_over)} |",
         "",
         "A stop over the bridge's voice is put down to the pilot only if the pilot's voiced speech (within "
         f"{VOICE_MARGIN_S:g} s) is in the audio the spotter heard from the bridge's sound on; any other stop if a "
-        f"clip ends within {MARGIN_S:g} s of the second before it.",
+        f"clip ends within {MARGIN_S:g} s of the second before it."
+        + (" This log predates the spotter saying whether it heard a stop over the bridge's voice: a stop spotted "
+           f"while the microphone was deaf (a cue's sound + {tail_s:g} s) is taken as one." if inferred else ""),
         "",
-        f"The pilot's clips said while the bridge was speaking (its sound + 0.4 s): {len(over)} of {len(placed)}, "
+        f"The pilot's clips said while the bridge was speaking (its sound + {tail_s:g} s): {len(over)} of {len(placed)}, "
         f"{len(over_commands)} of them commands (not heard as commands then: only a stop is); "
-        f"{len(over_stops)} of them a stop, {len(heard_stops)} of those spotted over the bridge's voice.",
+        f"{len(over_stops)} of them a stop: {len(heard_stops)} of those spotted within a second of their end, "
+        f"{len(heard_over)} of them over the bridge's voice (the others once it had finished).",
         "",
-        f"Load average after the run: {_load()} (2 CPUs).",
+        "The bridge's sounds the spotter fired on by themselves (a stop for nothing), of the times each was played:",
         "",
-    ])
-    print(report)
+        "| cue | played | the spotter fired on it |",
+        "| --- | --- | --- |",
+        *[f"| {words} | {n} | {fired} |" for words, (n, fired) in sorted(by_cue.items(), key=lambda kv: -kv[1][0])],
+        "",
+        f"Load average {'now' if inferred or 'earlier' in took else 'after the run'}: {_load()} (2 CPUs).",
+        "",
+    ]
     for e in own_heard + own_spotted:
         print("own audio:", e["msg"])
-    if args.out:
-        args.out.parent.mkdir(parents=True, exist_ok=True)
-        args.out.write_text(report, encoding="utf-8")
-    return 0
+    return "\n".join(lines)
 
 
 def _load() -> str:
