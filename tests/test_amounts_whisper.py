@@ -106,3 +106,24 @@ def test_a_spanish_distance_down_after_an_elided_a_is_unsure() -> None:
     assert elided.action is None and "a ocho metros" in elided.reason
     assert decide("baja", "Baja a ocho metros.").amount == Amount(8, "m", height=True, words="a ocho metros")
     assert decide("desciende", "Desciende ocho metros.").amount == Amount(8, "m", words="ocho metros")
+
+
+@pytest.mark.slow
+def test_a_digit_whisper_did_not_write_is_not_flown_open_ended(whisper_score, real_speech_dir):
+    """A real "right" and a real "three" after it (tools.bench_amounts_real's splice, held-out speakers): Whisper
+    writes "Right." for some. Flown, that motion runs until "stop" where 3 m was asked; the speech after the
+    words it wrote (``speech_after_s``) says there was more, and nothing is done. The same "right" alone flies."""
+    import numpy as np
+
+    from tools.bench_amounts_real import spliced, voiced
+    from tools.make_corpus import read_wav
+
+    command = real_speech_dir / "en" / "go_right" / "sc_right_1ed557b9_nohash_0.wav"
+    digit = real_speech_dir / "en" / "_none" / "sc_three_c9b653a0_nohash_2.wav"
+    pcm = lambda x: (np.clip(x, -1, 1) * 32767).astype("<i2").tobytes()  # noqa: E731
+    result, decision = _decide(whisper_score, pcm(spliced(command, digit, np.zeros(1), 0, "clean")), "en")
+    assert result.transcript.lower().startswith("right") and not decision.accepted, (result.transcript, decision)
+    assert "more speech" in decision.reason and result.extra["speech_after_s"] > 0.4
+    alone = np.concatenate([np.zeros(4800, np.float32), voiced(read_wav(command)), np.zeros(4800, np.float32)])
+    result, decision = _decide(whisper_score, pcm(alone), "en")
+    assert decision.action == "go_right" and decision.amount is None, (result.transcript, decision)

@@ -18,6 +18,7 @@ import numpy as np
 from gcs_voice.asr.base import SAMPLE_RATE, BufferedStream, Hypothesis, Recognition
 from gcs_voice.asr.models import sphinx_model_dir
 from gcs_voice.asr.settings import engine_settings
+from gcs_voice.audio.voiced import speech_beyond
 from gcs_voice.domain.dictionary import Dictionary
 from gcs_voice.errors import ModelError
 from gcs_voice.domain.text import normalize_text
@@ -160,7 +161,8 @@ class SphinxStream(BufferedStream):
             extra["out_of_grammar"] = 1.0
             return Recognition((), rec.name, "en", audio_s, extra)
         extra["out_of_grammar"] = 0.0
-        extra["speech_beyond_s"] = speech_beyond(pcm, words[0].start_frame, words[-1].end_frame,
+        extra["speech_beyond_s"] = speech_beyond(pcm, words[0].start_frame / 100.0,
+                                                 (words[-1].end_frame + 1) / 100.0,
                                                  float(rec.settings.get("beyond_pad_s", 0.25)),
                                                  int(rec.settings.get("beyond_vad_mode", 3)))
         hypotheses = [Hypothesis(text, confidence=posterior, score=float(hyp.score))]
@@ -174,28 +176,6 @@ class SphinxStream(BufferedStream):
             if len(hypotheses) >= limit:
                 break
         return Recognition(tuple(hypotheses), rec.name, "en", audio_s, extra)
-
-
-def speech_beyond(pcm: bytes, first_frame: int, last_frame: int, pad_s: float = 0.25, vad_mode: int = 3) -> float:
-    """Seconds of speech (PocketSphinx's own voice-activity detector) more than ``pad_s`` before the first or
-    after the last word the decoder placed (frames of 10 ms).
-
-    The grammar forces a command onto any speech the garbage branch did not absorb: a real 9 s sentence
-    ("can I get a large latte ...") came out as "go up" with the rest read as silence. A command is short;
-    speech that goes on around it said more than a command (Whisper's scoring mode judges its transcript
-    the same way)."""
-    from pocketsphinx import Vad
-
-    vad = Vad(vad_mode, SAMPLE_RATE)
-    size = vad.frame_bytes
-    start, end = first_frame / 100.0 - pad_s, (last_frame + 1) / 100.0 + pad_s
-    window_s = size / 2 / SAMPLE_RATE
-    beyond = 0.0
-    for i in range(0, len(pcm) - size + 1, size):
-        middle = (i / 2) / SAMPLE_RATE + window_s / 2
-        if (middle < start or middle > end) and vad.is_speech(pcm[i:i + size]):
-            beyond += window_s
-    return round(beyond, 3)
 
 
 def _dither(pcm: bytes, lsb: int, min_run: int = SAMPLE_RATE // 100) -> bytes:

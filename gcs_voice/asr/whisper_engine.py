@@ -254,6 +254,13 @@ class WhisperRecognizer:
             "class_gap": min(result.class_gap, 99.0),
             "transcript_cut": float(result.cut),  # the speech went on past the free pass: more than a command
         }
+        if result.spoken_s is not None and result.amount_gap is None:
+            # Speech after the words Whisper wrote (where it aligned them): words it did not write, such as the
+            # digit of "right eight" heard "Right." (the matcher does not fly a motion open-ended on that)
+            from gcs_voice.audio.voiced import speech_after
+
+            spoken = trim_silence(audio) if s.get("score_trim", True) else audio
+            extra["speech_after_s"] = speech_after(spoken, result.spoken_s[1])
         if result.amount_gap is not None:  # an amount was said: how surely, against the amounts that sound alike
             extra["amount_gap"] = max(min(result.amount_gap, 99.0), -99.0)
             extra["amount_rival"] = float(result.amount_rival)

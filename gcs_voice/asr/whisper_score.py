@@ -191,6 +191,8 @@ class PhraseScores:
     #: word put in or taken out, "a ocho metros" against "ocho metros"). None: no amount.
     amount_gap: float | None = None
     amount_rival: int = 0
+    #: where Whisper's own transcript was said in the audio it scored, (start, end) seconds (its alignment)
+    spoken_s: tuple[float, float] | None = None
 
     @property
     def best(self) -> tuple[Phrase, float] | None:
@@ -359,6 +361,15 @@ def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, li
     return rivals
 
 
+def _aligned_span(result, words: int) -> tuple[float, float] | None:
+    """(start, end) seconds of the first ``words`` tokens of an aligned sequence (CTranslate2's ``align``:
+    pairs of token index and encoder frame, 20 ms each): where Whisper's own transcript was said."""
+    frames = [t for i, t in getattr(result, "alignments", []) if i < words]
+    if not frames:
+        return None
+    return min(frames) * 0.02, (max(frames) + 1) * 0.02
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
                     extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean",
                     context: str = "", between_stages: Callable[[], None] | None = None) -> PhraseScores:
@@ -425,6 +436,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     batch = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(sequences), axis=0)))
     results = model.align(batch, prompt, sequences, [num_frames] * len(sequences))
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
+    spoken = _aligned_span(results[-1], len(unit) - 1) if unit else None
     free_lp = logprobs.pop() if unit else np.empty(0)
     free_logprob = _mean(free_lp)
     rival_lps = [logprobs.pop() for _, toks in rivals if toks is not None][::-1]
@@ -461,4 +473,5 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
     return PhraseScores(ranked, free_text, free_logprob, float(free.no_speech_prob),
                         not_command, ordered[0][2] if ordered else None,
-                        tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut, amount_gap, amount_rival)
+                        tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut, amount_gap, amount_rival,
+                        spoken)

@@ -128,6 +128,8 @@ class Matcher:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         amount, reason = amounts.judge(recognition.transcript or recognition.text, recognition.extra,
                                        recognition.engine, best.dictionary, best.phrase.action)
+        if not reason and rejecting and amount is None:
+            reason = self._unwritten_speech_reason(recognition, best)
         if reason:  # a wrong amount is a wrong action
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         return Decision(
@@ -282,6 +284,23 @@ class Matcher:
             return ""
         return (f"not a command: heard '{recognition.transcript}', which has {shared:.0%} of the sounds of "
                 f"'{best.phrase.text}' (< {limit:.0%})")
+
+    def _unwritten_speech_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """A motion that could take an amount is not flown open-ended over speech the engine did not write.
+
+        Real "right" and a real "eight" after it came out of Whisper as "Right.": flown, that is a motion that
+        runs until "stop" where the pilot asked for 8 m. Speech after the words Whisper wrote (where it aligned
+        them: ``speech_after_s``, gcs_voice/audio/voiced.py) longer than ``max_speech_after_s`` means words it
+        did not write; the motion is not flown on the rest.
+        """
+        if best.phrase.action not in amounts.DISTANCE_MOTIONS | amounts.TURNS:
+            return ""
+        limit = transcript_limits(recognition.engine, self.thresholds_path, recognition.lang).get("max_speech_after_s")
+        after = recognition.extra.get("speech_after_s")
+        if limit is None or after is None or after <= limit:
+            return ""
+        return (f"unsure: heard '{recognition.transcript or recognition.text}', and {after:.1f} s more speech "
+                f"after it that was not written (a distance or an angle?): say it again")
 
     def shared(self, heard: str, phrase: str, dictionary: Dictionary) -> float:
         """The fraction of ``phrase`` found in ``heard``, in order (characters; the phonetic matcher: sounds)."""
