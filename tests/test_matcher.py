@@ -403,3 +403,17 @@ def test_a_stray_word_is_not_joined_to_a_word_of_the_class() -> None:
     assert decision.action is None and "'y' is in no go_left phrase" in decision.reason, decision
     assert get_matcher("phonetic").decide(_scored_in("detenerse", "De tenerse.", "es"), [ES]).action == "stop"
     assert get_matcher("phonetic").decide(_scored("stop", "Don't stop!", 0.0), [EN]).action == "stop"
+
+
+@pytest.mark.parametrize(("phrase", "transcript", "lang"), [
+    ("down", "7", "en"), ("go forward", "4", "en"), ("right", "Eight.", "en"), ("up", "three meters", "en"),
+    ("baja", "siete", "es"),
+])
+def test_a_number_heard_alone_is_no_command(phrase: str, transcript: str, lang: str) -> None:
+    """Whisper wrote "7" for a real "down" followed by a real "seven", and a real "four" said to someone else "4":
+    with the scores near enough, both flew (open-ended, or for nothing). A number alone is no command."""
+    decision = get_matcher("phonetic").decide(_scored_in(phrase, transcript, lang, 0.2), [EN if lang == "en" else ES])
+    assert decision.action is None and "only a number" in decision.reason, decision
+    with_command = _scored_in("down", "Down 7.", "en", 0.0)
+    with_command.extra["amount_gap"] = 5.0
+    assert get_matcher("phonetic").decide(with_command, [EN]).amount is not None  # said with the command: flown

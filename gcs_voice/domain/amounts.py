@@ -64,6 +64,8 @@ class Split:
     reason: str = ""
     #: the amount's words as heard (the number, its unit, the height words), "" when none
     words: str = ""
+    #: the transcript is an amount and nothing else ("7", "three metres"): no command was heard
+    amount_alone: bool = False
 
 
 @dataclass(frozen=True)
@@ -185,7 +187,7 @@ def split_amount(text: str, lang: str) -> Split:
     said = " ".join(words[start:])
     command = " ".join(words[:start])
     if not command:
-        return Split(text, reason=f"'{text}' is an amount with no command")
+        return Split(text, reason=f"'{text}' is an amount with no command", amount_alone=True)
     value = _number(words[number_at:end], vocab)
     if value is None:
         return Split(command, reason=f"unclear amount '{said}': say again", words=said)

@@ -122,7 +122,8 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = (_negation_reason(recognition, best) or self._weak_match_reason(recognition, best)
+        reason = (_negation_reason(recognition, best) or _number_alone_reason(recognition, best)
+                  or self._weak_match_reason(recognition, best)
                   or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
@@ -343,6 +344,18 @@ class Matcher:
 
 #: the one class a negation does not refuse: "don't stop" stopping costs a pause, a refused stop a wall
 ALWAYS_SAFE = "stop"
+
+
+def _number_alone_reason(recognition: Recognition, best: Candidate) -> str:
+    """A number heard alone is no command, however well a phrase scores on the audio: Whisper wrote "7" for a
+    real "down" and a real "seven" after it, and the scores flew down open-ended; a real "four" said to
+    someone else, heard "4", flew forward in a stream (issue 33, issue 30)."""
+    if not recognition.transcript:
+        return ""
+    heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
+    if amounts.split_amount(heard, best.dictionary.language).amount_alone:
+        return f"heard only a number ('{recognition.transcript}'): say the command with it"
+    return ""
 
 
 def _negation_reason(recognition: Recognition, best: Candidate) -> str:
