@@ -33,12 +33,14 @@ class EchoCanceller:
 
     ``block`` samples per step (16 ms at 16 kHz), ``length_s`` of echo path modelled, ``step`` the NLMS
     step at full confidence, ``min_step`` its floor, ``regularization`` the share of the reference's mean
-    power added to each bin's in the normalisation. Samples come in any chunk size; the output lags by less
-    than one block.
+    power added to each bin's in the normalisation, ``comfort_noise_dbfs`` white noise under the output
+    (relative to 16-bit full scale: samples in int16 units). Samples come in any chunk size; the output lags by
+    less than one block.
     """
 
     def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
-                 min_step: float = 0.5, regularization: float = 0.1, suppress: float = 1.0) -> None:
+                 min_step: float = 0.5, regularization: float = 0.1, suppress: float = 1.0,
+                 comfort_noise_dbfs: float | None = None) -> None:
         if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
             raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
                              f"length_s {length_s} above 0")
@@ -48,6 +50,9 @@ class EchoCanceller:
         self.min_step = min_step
         self.regularization = regularization
         self.suppress = suppress
+        #: white noise this far below 16-bit full scale under everything it returns (None: none)
+        self.comfort = None if comfort_noise_dbfs is None else 32768.0 * 10 ** (comfort_noise_dbfs / 20)
+        self._noise = np.random.default_rng(0)  # seeded: the same audio gives the same output
         bins = block + 1
         self._w = np.zeros((self.parts, bins), np.complex128)  # the echo path, per partition
         self._x = np.zeros((self.parts, bins), np.complex128)  # spectra of the last reference blocks, newest first
@@ -71,6 +76,11 @@ class EchoCanceller:
         for i in range(0, n, self.block):
             out[i:i + self.block] = self._step(self._mic_in[i:i + self.block], self._ref_in[i:i + self.block])
         self._mic_in, self._ref_in = self._mic_in[n:], self._ref_in[n:]
+        if self.comfort is not None:
+            # Comfort noise, as every echo canceller's output has: what is left of the bridge's words in a silent
+            # room is a faint, lone sound (-70 dBFS) that a keyword spotter, which normalises the level away,
+            # took for "stay"; over a floor no real room is quieter than, it is nothing
+            out += self._noise.normal(0.0, self.comfort, out.size)
         return out
 
     def drop_pending(self) -> None:

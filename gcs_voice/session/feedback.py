@@ -145,10 +145,11 @@ def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSetti
     cancel = None
     if echo.get("cancel", False):
         try:
-            cancel = {key: float(echo[key]) for key in ("length_s", "step", "min_step", "regularization", "suppress")
-                      if key in echo}
+            cancel = {key: float(echo[key]) for key in ("length_s", "step", "min_step", "regularization", "suppress",
+                                                         "comfort_noise_dbfs") if key in echo}
         except (TypeError, ValueError):
-            raise GcsVoiceError(f"{path}: [echo] length_s, step, min_step, regularization and suppress must be "
+            raise GcsVoiceError(f"{path}: [echo] length_s, step, min_step, regularization, suppress and "
+                                f"comfort_noise_dbfs must be "
                                 "numbers") from None
     return SoundSettings(float(data.get("amplitude", 0.3)), float(data.get("fade_s", 0.005)), tones,
                          float(echo.get("tail_s", 0.4)), int(data.get("speech", {}).get("speed_wpm", 175)), cancel)
