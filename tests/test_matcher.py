@@ -417,3 +417,13 @@ def test_a_number_heard_alone_is_no_command(phrase: str, transcript: str, lang: 
     with_command = _scored_in("down", "Down 7.", "en", 0.0)
     with_command.extra["amount_gap"] = 5.0
     assert get_matcher("phonetic").decide(with_command, [EN]).amount is not None  # said with the command: flown
+
+
+def test_a_command_ending_on_the_word_before_a_number_is_not_flown() -> None:
+    """A real "down" and a real "two" came out "Down to": the number is lost, and down open-ended is not what was
+    asked. "Go to the left" and "down to 3" are unaffected."""
+    decision = get_matcher("phonetic").decide(_scored_in("down", "Down to", "en", 0.0), [EN])
+    assert decision.action is None and "'to' what?" in decision.reason, decision
+    assert get_matcher("phonetic").decide(_scored_in("go left", "Go to the left.", "en", 0.0), [EN]).action == "go_left"
+    spanish = get_matcher("phonetic").decide(_scored_in("baja", "Baja a", "es", 0.0), [ES])
+    assert spanish.action is None and "'a' what?" in spanish.reason, spanish

@@ -349,12 +349,19 @@ ALWAYS_SAFE = "stop"
 def _number_alone_reason(recognition: Recognition, best: Candidate) -> str:
     """A number heard alone is no command, however well a phrase scores on the audio: Whisper wrote "7" for a
     real "down" and a real "seven" after it, and the scores flew down open-ended; a real "four" said to
-    someone else, heard "4", flew forward in a stream (issue 33, issue 30)."""
+    someone else, heard "4", flew forward in a stream (issue 33, issue 30). Nor is a command that ends on the
+    word before a height ("Down to", "baja a"): the number after it was lost."""
     if not recognition.transcript:
         return ""
     heard = best.dictionary.strip_skip_words(normalize_text(recognition.transcript))
     if amounts.split_amount(heard, best.dictionary.language).amount_alone:
         return f"heard only a number ('{recognition.transcript}'): say the command with it"
+    vocab = amounts.vocabulary(best.dictionary.language)
+    words = heard.split()
+    if (vocab is not None and len(words) > 1 and words[-1] in vocab.to
+            and best.phrase.match_key.split()[-1:] != words[-1:]):
+        # "Down to" for a real "down" and a real "two": the height word with no number after it, the number lost
+        return f"heard '{recognition.transcript}': '{words[-1]}' what? Say it again with the number"
     return ""
 
 
