@@ -207,8 +207,11 @@ def main(argv: list[str] | None = None) -> int:
         f"cue for a decision (the doing tone, then espeak-ng saying \"{words}\", {voice.size / RATE:.1f} s), the stop "
         f"starting {args.stop_at:g} s into it; the cue reaches the microphone {args.delay_ms:g} ms late, {path}, at a "
         "level of its voiced parts relative to the stop's. No noise. The spotter decodes the mix from the start of "
-        "the cue, as its stream does while the microphone is deaf: the raw microphone, or the microphone less the "
-        "echo canceller's estimate of the cue (gcs_voice/audio/echo_cancel.py, given what was played), from a "
+        "the cue, as its stream does while the microphone is deaf, at its threshold over the bridge's voice ("
+        f"{'the shipped over_voice_threshold of gcs_voice/asr/stop_spotter.toml' if strict == [None] else 'each named'}"
+        "; a stop alone is judged at the usual one): the raw microphone, or the microphone less the echo "
+        "canceller's estimate of the cue (gcs_voice/audio/echo_cancel.py, given what was played, with its comfort "
+        "noise: the shipped [echo] of sounds.toml unless named), from a "
         f"fresh filter (cold: the session's first cue) or one that has heard one earlier cue (\"{earlier}\", warm: "
         "any later cue).",
         "",
