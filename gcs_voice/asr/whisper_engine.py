@@ -196,7 +196,8 @@ class WhisperRecognizer:
     # -- mode "score" -----------------------------------------------------------------------------
     def encode_short(self, audio: np.ndarray):
         """Encoder output of the utterance, trimmed of leading/trailing silence, plus ``score_pad_s`` of
-        silence (not a 30 s window), and its mel frame count: what scoring mode judges phrases on."""
+        silence (not a 30 s window), its mel frame count, and the audio encoded: what scoring mode judges
+        phrases on."""
         s = self.settings
         if s.get("score_trim", True):
             audio = trim_silence(audio)
@@ -218,8 +219,8 @@ class WhisperRecognizer:
                 import ctranslate2
 
                 encoded = ctranslate2.StorageView.from_array(np.ascontiguousarray(array[:, :keep]))
-                return encoded, 2 * keep
-        return encoded, features.shape[-1]
+                return encoded, 2 * keep, audio
+        return encoded, features.shape[-1], audio
 
     def phrase_forms(self, lang: str):
         """The dictionary's phrases tokenised as Whisper writes them (once per language)."""
@@ -231,7 +232,7 @@ class WhisperRecognizer:
                        between_stages: Callable[[], None] | None = None) -> Recognition:
         """Phrases judged against Whisper's own transcript on one short encoder pass (:mod:`whisper_score`)."""
         s = self.settings
-        encoded, frames = self.encode_short(audio)
+        encoded, frames, spoken = self.encode_short(audio)
         if between_stages is not None:
             between_stages()  # the decoder passes cost about as much as the encoder: skip them if unwanted
         candidates = [fixed_lang] if fixed_lang is not None else list(self.languages)
@@ -259,7 +260,6 @@ class WhisperRecognizer:
             # digit of "right eight" heard "Right." (the matcher does not fly a motion open-ended on that)
             from gcs_voice.audio.voiced import speech_after
 
-            spoken = trim_silence(audio) if s.get("score_trim", True) else audio
             extra["speech_after_s"] = speech_after(spoken, result.spoken_s[1])
         if result.amount_gap is not None:  # an amount was said: how surely, against the amounts that sound alike
             extra["amount_gap"] = max(min(result.amount_gap, 99.0), -99.0)

@@ -122,7 +122,7 @@ class Matcher:
                 lang,
                 score,
             )
-        reason = (_negation_reason(recognition, best) or _number_alone_reason(recognition, best)
+        reason = (_negation_reason(recognition, best) or _lost_number_reason(recognition, best)
                   or self._weak_match_reason(recognition, best)
                   or self._transcript_reason(recognition, best)) if rejecting else ""
         if reason:
@@ -346,7 +346,7 @@ class Matcher:
 ALWAYS_SAFE = "stop"
 
 
-def _number_alone_reason(recognition: Recognition, best: Candidate) -> str:
+def _lost_number_reason(recognition: Recognition, best: Candidate) -> str:
     """A number heard alone is no command, however well a phrase scores on the audio: Whisper wrote "7" for a
     real "down" and a real "seven" after it, and the scores flew down open-ended; a real "four" said to
     someone else, heard "4", flew forward in a stream (issue 33, issue 30). Nor is a command that ends on the
