@@ -33,6 +33,13 @@ SETTINGS = load_settings()
     ("gira a la izquierda ciento ochenta grados", "es", "gira a la izquierda", 180, "deg", False),
     ("sube a cinco metros", "es", "sube", 5, "m", True),
     ("baja dos metros de altura", "es", "baja", 2, "m", True),
+    # as Whisper writes them: a number in digit parts, "for" before a unit word
+    ("rotate right 100 and 35 degrees", "en", "rotate right", 135, "deg", False),
+    ("turn left 100 and 20 degrees", "en", "turn left", 120, "deg", False),
+    ("gira a la derecha ciento 35 grados", "es", "gira a la derecha", 135, "deg", False),
+    ("go to the right for meters", "en", "go to the right", 4, "m", False),
+    ("up to for meters", "en", "up", 4, "m", True),
+    ("go forward for 3 meters", "en", "go forward for", 3, "m", False),
 ])
 def test_amounts_are_read_in_both_languages(text: str, lang: str, command: str, value: int, unit: str,
                                             height: bool) -> None:
@@ -57,6 +64,8 @@ def test_plain_commands_have_no_amount(text: str, lang: str) -> None:
     ("forward five forty", "en", "unclear amount"),
     ("turn left two hundred degrees", "en", "out of range"),
     ("turn left three degrees", "en", "out of range"),
+    ("go forward 4 12 meters", "en", "unclear amount"),    # Whisper's "4 12" for "forward twelve": no guess
+    ("turn left 2 100 degrees", "en", "out of range"),
 ])
 def test_unclear_or_out_of_range_amounts_are_refused_not_clipped(text: str, lang: str, said: str) -> None:
     split = split_amount(text, lang)
@@ -86,6 +95,13 @@ def test_amounts_that_sound_alike_are_known() -> None:
     assert 50 in alike(15, "en") and 15 in alike(50, "en")
     assert 12 in alike(2, "es") and 2 in alike(12, "es")
     assert alike(3, "en") == ()
+    # above a hundred, by what follows it: "one hundred and eighty" against "one hundred and eighteen"
+    assert 118 in alike(180, "en") and 150 in alike(115, "en") and 116 in alike(160, "es")
+
+
+def test_for_is_a_number_only_right_before_a_unit() -> None:
+    assert split_amount("go forward for", "en").amount is None
+    assert split_amount("go forward", "en").amount is None
 
 
 @pytest.mark.parametrize("lang", ["en", "es"])

@@ -32,6 +32,10 @@ def _decide(recognizer, pcm: bytes, lang: str):
     ("go left ten metres", "en-us", "en", "go_left", Amount(10, "m")),
     ("climb to five metres", "en-us", "en", "up", Amount(5, "m", height=True)),
     ("sube a cinco metros", "es", "es", "up", Amount(5, "m", height=True)),
+    # Whisper writes "Turn left 100 and 20 degrees." for it: read as 120 (and weighed against "100 and 2")
+    ("turn left one hundred and twenty degrees", "en-us", "en", "turn_left", Amount(120, "deg")),
+    # Whisper writes "Go to the right for meters.": 'for' before a unit word is the number four
+    ("go to the right four metres", "en-us", "en", "go_right", Amount(4, "m")),
 ])
 def test_a_command_with_its_amount(whisper_score, tmp_path, text, voice, lang, action, amount):
     result, decision = _decide(whisper_score, pcm_of(text, tmp_path, voice), lang)

@@ -332,10 +332,10 @@ def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, li
         return []
     value, rivals = split.amount.value, []
     digits = any(ch.isdigit() for ch in text)
-    heard = str(value) if digits else None
-    if heard is None:  # the words of the heard number as written, case kept
+    heard = str(value) if digits and str(value) in text else None
+    if heard is None:  # the words of the heard number as written, case kept ("forty five", "100 and 35")
         words = normalize_text(text, fold=False).split()
-        spoken = number_words(value, lang).split()
+        spoken = split.number.split() or number_words(value, lang).split()
         for i in range(len(words) - len(spoken) + 1):
             if [normalize_text(w) for w in words[i:i + len(spoken)]] == spoken:
                 heard = " ".join(text.split()[i:i + len(spoken)])
@@ -349,8 +349,15 @@ def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, li
             number = number[:1].upper() + number[1:]
         return list(canonical_tokens(tokenizer, " " + (head + number + after).strip()))
 
+    def as_heard(other: int) -> str:
+        """``other`` written as the heard number was: "100 and 18" against a heard "100 and 80"."""
+        parts = heard.split()
+        if digits and len(parts) > 1 and parts[-1].isdigit() and other // 100 == value // 100 and other % 100:
+            return " ".join([*parts[:-1], str(other % 100)])
+        return str(other) if digits else number_words(other, lang)
+
     for other in alike(value, lang):
-        rivals.append((other, written(before, str(other) if digits else number_words(other, lang))))
+        rivals.append((other, written(before, as_heard(other))))
     to_words = sorted(vocabulary(lang).to)
     head = before.rstrip()
     last = head.split()[-1] if head.split() else ""

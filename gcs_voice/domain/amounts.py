@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import re
 import tomllib
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import lru_cache
 from pathlib import Path
 from typing import Any
@@ -66,6 +66,8 @@ class Split:
     words: str = ""
     #: the transcript is an amount and nothing else ("7", "three metres"): no command was heard
     amount_alone: bool = False
+    #: the number's words as heard ("100 and 35", "forty five"), "" when none
+    number: str = ""
 
 
 @dataclass(frozen=True)
@@ -79,6 +81,8 @@ class Vocabulary:
     to_elided_after: tuple[str, ...]
     alike: tuple[frozenset[int], ...]
     ranges: dict[str, tuple[int, int]]
+    #: words Whisper writes for a number said just before a unit word ("for meters"): read as that number there
+    before_unit: dict[str, int] = field(default_factory=dict)
 
     @property
     def words(self) -> frozenset[str]:
@@ -109,6 +113,7 @@ def vocabulary(lang: str, path: Path = AMOUNTS_PATH) -> Vocabulary | None:
             to_elided_after=tuple(str(w) for w in table.get("to_elided_after", [])),
             alike=tuple(frozenset(int(v) for v in group) for group in table.get("alike", [])),
             ranges=ranges,
+            before_unit={str(k): int(v) for k, v in table.get("before_unit", {}).items()},
         )
     except (KeyError, TypeError, ValueError) as exc:
         raise AmountsError(f"{path}: [{lang}] is malformed ({exc})") from None
@@ -132,6 +137,11 @@ def _number(words: list[str], vocab: Vocabulary) -> int | None:
         if word in vocab.joins:
             if i == 0 or i == len(words) - 1 or words[i - 1] in vocab.joins:
                 return None
+            continue
+        # Whisper writes a number in parts as digits ("100 and 35" for "one hundred and thirty five"): each
+        # part reads as its word would, and the same rules of order apply
+        if word.isdigit() and 0 < int(word) <= 100:
+            values.append(int(word))
             continue
         if word not in vocab.numbers:
             return None
@@ -170,6 +180,13 @@ def split_amount(text: str, lang: str) -> Split:
     if end and words[end - 1] in vocab.units:
         unit = vocab.units[words[end - 1]]
         end -= 1
+    if (unit is not None and end and words[end - 1] in vocab.before_unit
+            and (end < 2 or not (words[end - 2] in vocab.numbers or words[end - 2].isdigit()))):
+        # "go to the right for meters": the one word before the unit is the number Whisper wrote as another word
+        number = words[end - 1]
+        words = [*words[:end - 1], str(vocab.before_unit[number]), *words[end:]]
+    else:
+        number = ""
     start = end
     while start and (words[start - 1] in vocab.numbers or words[start - 1].isdigit()
                      or (words[start - 1] in vocab.joins and start < end)):
@@ -184,13 +201,14 @@ def split_amount(text: str, lang: str) -> Split:
         number_at = start + 1
     else:
         number_at = start
-    said = " ".join(words[start:])
+    said = " ".join(words[start:]) if not number else " ".join([*words[start:end - 1], number, *words[end:]])
     command = " ".join(words[:start])
     if not command:
         return Split(text, reason=f"'{text}' is an amount with no command", amount_alone=True)
+    number = number or " ".join(words[number_at:end])
     value = _number(words[number_at:end], vocab)
     if value is None:
-        return Split(command, reason=f"unclear amount '{said}': say again", words=said)
+        return Split(command, reason=f"unclear amount '{said}': say again", words=said, number=number)
     unit = unit or ""
     if unit and unit not in vocab.ranges:
         return Split(command, reason=f"unknown unit in '{said}'", words=said)
@@ -198,8 +216,8 @@ def split_amount(text: str, lang: str) -> Split:
         lo, hi = vocab.ranges[unit]
         if not lo <= value <= hi:
             return Split(command, reason=f"{value} {_unit_name(unit)} is out of range ({lo}-{hi}): not done",
-                         words=said)
-    return Split(command, Amount(value, unit, height, said), words=said)
+                         words=said, number=number)
+    return Split(command, Amount(value, unit, height, said), words=said, number=number)
 
 
 def amount_reason(amount: Amount, action: str, lang: str) -> tuple[Amount | None, str]:
@@ -268,7 +286,12 @@ def alike(value: int, lang: str) -> tuple[int, ...]:
     vocab = vocabulary(lang)
     if vocab is None:
         return ()
-    return tuple(sorted({v for group in vocab.alike if value in group for v in group} - {value}))
+    groups = {v for group in vocab.alike if value in group for v in group}
+    # "one hundred and eighty" sounds like "one hundred and eighteen" as "eighty" does like "eighteen"
+    hundreds, rest = value - value % 100, value % 100
+    if hundreds and rest:
+        groups |= {hundreds + v for group in vocab.alike if rest in group for v in group}
+    return tuple(sorted(groups - {value}))
 
 
 def number_words(value: int, lang: str) -> str:
