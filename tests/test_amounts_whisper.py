@@ -36,6 +36,10 @@ def _decide(recognizer, pcm: bytes, lang: str):
     ("turn left one hundred and twenty degrees", "en-us", "en", "turn_left", Amount(120, "deg")),
     # Whisper writes "Go to the right for meters.": 'for' before a unit word is the number four
     ("go to the right four metres", "en-us", "en", "go_right", Amount(4, "m")),
+    # the command word misheard before its amount ("defend 13 meters.", "Move backwards 10 meters"): the phrases
+    # are scored with Whisper's own amount after them, not ended where the speech goes on
+    ("descend thirteen metres", "en-us", "en", "down", Amount(13, "m")),
+    ("move backward ten metres", "en-us", "en", "go_back", Amount(10, "m")),
 ])
 def test_a_command_with_its_amount(whisper_score, tmp_path, text, voice, lang, action, amount):
     result, decision = _decide(whisper_score, pcm_of(text, tmp_path, voice), lang)
@@ -56,6 +60,15 @@ def test_an_amount_that_sounds_like_another_is_weighed_against_it(whisper_score,
         assert result.extra["amount_gap"] >= 2.0
     else:
         assert "unsure of the amount" in decision.reason
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("text", ["we moved about ten metres", "turn the page forty five degrees",
+                                  "the table is two metres", "go home twenty metres"])
+def test_other_speech_that_ends_on_an_amount_is_no_command(whisper_score, tmp_path, text):
+    """Scored with its amount, a phrase must still be as likely as what Whisper heard: these are not."""
+    result, decision = _decide(whisper_score, pcm_of(text, tmp_path), "en")
+    assert decision.action is None, (result.transcript, decision)
 
 
 @pytest.mark.slow

@@ -22,6 +22,11 @@ decisions once its thresholds were re-chosen: docs/bench/real.md). The evidence 
 itself heard a dictionary phrase, slightly negative when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
 memoria" heard perfectly does not become "derecha"). One threshold on it (``min_margin`` in
 ``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.bench_real tune``).
+
+An amount after the command ("Go forward 3 meters.", read by ``gcs_voice.domain.amounts``) is weighed against
+the amounts that sound like it, in the transcript as Whisper wrote it. When the words before it are no phrase
+("defend 13 meters." for "descend thirteen metres"), each phrase is scored with Whisper's own amount after it
+and judged on its words and the first token after them, as a plain command on its words and its period.
 """
 
 from __future__ import annotations
@@ -312,15 +317,34 @@ def generation_length(prompt_length: int, new_tokens: int) -> int:
 AMOUNT_TOKENS = 8
 
 
-def amount_transcript(forms: PhraseForms, text: str):
-    """The split of a free transcript that is a dictionary command followed by an amount, else None."""
+def amount_transcript(forms: PhraseForms, text: str, loose: bool = False):
+    """The split of a free transcript that is a dictionary command followed by an amount, else None.
+
+    ``loose``: also when the words before a clear amount are no phrase of the dictionary ("Descent 13
+    meters."): the phrases are then scored with that amount after them (:func:`_amount_start`)."""
     lang = forms.dictionary.language
     if vocabulary(lang) is None:
         return None
     split = split_amount(forms.dictionary.strip_skip_words(normalize_text(text)), lang)
-    if not split.words or split.command not in forms.dictionary.by_key:
+    if not split.words:
         return None
-    return split
+    if split.command in forms.dictionary.by_key:
+        return split
+    if loose and split.amount is not None and split.command and not split.amount_alone:
+        return split
+    return None
+
+
+def _amount_start(tokenizer, tokens: Sequence[int], said: str) -> int | None:
+    """Where the amount begins among Whisper's own ``tokens`` (its transcript without the final period): the
+    last word boundary from which the rest reads as ``said`` (the amount's words); None when none does."""
+    target = said.replace(" ", "")
+    for j in range(len(tokens) - 1, 0, -1):
+        if not tokenizer.decode(tokens[j:j + 1]).startswith(" "):
+            continue
+        if normalize_text(tokenizer.decode(tokens[j:])).replace(" ", "") == target:
+            return j
+    return None
 
 
 def _amount_rivals(tokenizer, text: str, split, lang: str) -> list[tuple[int, list[int] | None]]:
@@ -410,7 +434,13 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
         said = [tokenizer.decode([t]) for t in whole]
         end = next((i + 1 for i, piece in enumerate(said) if piece.strip() in (".", "!", "?")), len(whole))
         if (end < len(whole) and only_repeats(said, end)) or len(whole) < room:
-            amount = amount_transcript(forms, tokenizer.decode(whole[:end]))
+            amount = amount_transcript(forms, tokenizer.decode(whole[:end]), loose=True)
+            if amount is not None and amount.command not in forms.dictionary.by_key:
+                words = whole[:end]
+                while words and not _word(tokenizer.decode(words[-1:])):
+                    words = words[:-1]
+                if _amount_start(tokenizer, words, amount.words) is None:
+                    amount = None   # the amount is not where Whisper's tokens can show it: judged as without one
             if amount is not None:
                 greedy, max_new_tokens = whole[:end], room
     steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0][:max_new_tokens]]
@@ -436,8 +466,24 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     else:
         unit = []
     free_written = tokenizer.decode(unit[:-1]).strip() if unit else ""
+    # An amount after words that are no phrase ("Descent 13 meters."): each phrase is scored with Whisper's own
+    # amount after it, and judged like a plain one, on its words and the token after them (the first of the
+    # amount, as the period is for a plain command: what tells "Go" from "Go up"). Without the amount, every
+    # phrase would end where the speech goes on, and none could be heard.
+    amount_at = (_amount_start(tokenizer, unit[:-1], amount.words)
+                 if amount is not None and unit and amount.command not in forms.dictionary.by_key else None)
+    period = list(tokenizer.encode("."))
+    phrase_tokens = [list(forms.tokens[i]) for i in chosen]
+    judged = [len(t) for t in phrase_tokens]            # how many leading tokens make each score
+    free_judged = len(unit)
+    if amount_at is not None:
+        tail = unit[amount_at:]                           # " 13 meters." as Whisper wrote it
+        core = [t[:-len(period)] if t[-len(period):] == period else t for t in phrase_tokens]
+        phrase_tokens = [c + tail for c in core]
+        judged = [len(c) + 1 for c in core]
+        free_judged = amount_at + 1
     rivals = _amount_rivals(tokenizer, free_written + ".", amount, forms.dictionary.language) if amount else []
-    sequences = ([list(forms.tokens[i]) for i in chosen] + [toks for _, toks in rivals if toks is not None]
+    sequences = (phrase_tokens + [toks for _, toks in rivals if toks is not None]
                  + ([unit] if unit else []))
     encoded = np.asarray(encoder_output)
     batch = ctranslate2.StorageView.from_array(np.ascontiguousarray(np.repeat(encoded, len(sequences), axis=0)))
@@ -445,7 +491,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     logprobs = [np.log(np.maximum(np.asarray(r.text_token_probs, np.float64), 1e-12)) for r in results]
     spoken = _aligned_span(results[-1], len(unit) - 1) if unit else None
     free_lp = logprobs.pop() if unit else np.empty(0)
-    free_logprob = _mean(free_lp)
+    free_logprob = _mean(free_lp[:free_judged])
     rival_lps = [logprobs.pop() for _, toks in rivals if toks is not None][::-1]
     amount_gap, amount_rival = None, 0
     if amount is not None and unit:
@@ -460,7 +506,8 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     rank = RANK_BY[rank_by]
     best: dict[int, tuple[Phrase, float, float]] = {}
     not_command = -math.inf
-    for i, lp in zip(chosen, logprobs):
+    for i, lp, n in zip(chosen, logprobs, judged):
+        lp = lp[:n]
         phrase, score = forms.phrases[i], rank(lp)
         if phrase.action == NOT_A_COMMAND:
             not_command = max(not_command, score)
