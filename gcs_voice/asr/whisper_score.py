@@ -335,6 +335,14 @@ def amount_transcript(forms: PhraseForms, text: str, loose: bool = False):
     return None
 
 
+def _to_last_word(tokenizer, tokens: Sequence[int]) -> list[int]:
+    """``tokens`` without the punctuation after their last word."""
+    out = list(tokens)
+    while out and not _word(tokenizer.decode(out[-1:])):
+        out.pop()
+    return out
+
+
 def _amount_start(tokenizer, tokens: Sequence[int], said: str) -> int | None:
     """Where the amount begins among Whisper's own ``tokens`` (its transcript without the final period): the
     last word boundary from which the rest reads as ``said`` (the amount's words); None when none does."""
@@ -429,6 +437,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     whole = list(free.sequences_ids[0])[:room]
     greedy = whole[:max_new_tokens]
     amount = None
+    amount_at = None  # where the amount begins in Whisper's tokens, when the words before it are no phrase
     if room > max_new_tokens:
         # its first sentence, when what follows only loops over it ("Turn left 45 degrees. Turn left 45 ...")
         said = [tokenizer.decode([t]) for t in whole]
@@ -436,10 +445,8 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
         if (end < len(whole) and only_repeats(said, end)) or len(whole) < room:
             amount = amount_transcript(forms, tokenizer.decode(whole[:end]), loose=True)
             if amount is not None and amount.command not in forms.dictionary.by_key:
-                words = whole[:end]
-                while words and not _word(tokenizer.decode(words[-1:])):
-                    words = words[:-1]
-                if _amount_start(tokenizer, words, amount.words) is None:
+                amount_at = _amount_start(tokenizer, _to_last_word(tokenizer, whole[:end]), amount.words)
+                if amount_at is None:
                     amount = None   # the amount is not where Whisper's tokens can show it: judged as without one
             if amount is not None:
                 greedy, max_new_tokens = whole[:end], room
@@ -450,9 +457,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # Whisper's own transcript, written like the phrases: its first unit (no loop), then a period.
     unit = greedy[:first_unit_length(pieces)] if greedy else []
     if amount is not None:  # the whole transcript is the unit: "Up two meters" is no loop of "Up"
-        unit = greedy[:]
-        while unit and not _word(tokenizer.decode(unit[-1:])):
-            unit.pop()
+        unit = _to_last_word(tokenizer, greedy)
     # Out of tokens on speech that is not a loop: it said more than the longest command, and no phrase
     # score could make it one, so the batched decoder pass over the phrases is skipped.
     loop = only_repeats(pieces, len(unit))
@@ -470,13 +475,11 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # amount after it, and judged like a plain one, on its words and the token after them (the first of the
     # amount, as the period is for a plain command: what tells "Go" from "Go up"). Without the amount, every
     # phrase would end where the speech goes on, and none could be heard.
-    amount_at = (_amount_start(tokenizer, unit[:-1], amount.words)
-                 if amount is not None and unit and amount.command not in forms.dictionary.by_key else None)
-    period = list(tokenizer.encode("."))
     phrase_tokens = [list(forms.tokens[i]) for i in chosen]
     judged = [len(t) for t in phrase_tokens]            # how many leading tokens make each score
     free_judged = len(unit)
-    if amount_at is not None:
+    if amount_at is not None and unit:
+        period = list(tokenizer.encode("."))
         tail = unit[amount_at:]                           # " 13 meters." as Whisper wrote it
         core = [t[:-len(period)] if t[-len(period):] == period else t for t in phrase_tokens]
         phrase_tokens = [c + tail for c in core]
