@@ -432,3 +432,101 @@ def test_a_clatter_of_dishes_does_not_fly(whisper_score):
     assert decision.action is None, decision
     assert result.extra["free_logprob"] < -5.0, result  # the case this guards: Whisper unsure of its own words
     assert "nothing clear" in decision.reason, decision.reason
+
+
+def _english_tokenizer_and_forms(whisper_model_dir):
+    import tokenizers
+    from faster_whisper.tokenizer import Tokenizer
+
+    from gcs_voice.asr.whisper_score import phrase_forms
+
+    hf = tokenizers.Tokenizer.from_file(str(whisper_model_dir / "tokenizer.json"))
+    tokenizer = Tokenizer(hf, True, task="transcribe", language="en")
+    return tokenizer, phrase_forms(tokenizer, EN)
+
+
+@pytest.mark.parametrize(("written", "more"), [
+    (" Left. Left. Left. Left.", False),          # a loop on a plain command: judged on "Left."
+    (" Up Up Up Up Up Up Up Up", False),
+    (" 7 7 7 7 7 7 7 7", False),                   # a loop of a number alone is no command
+    (" Move up 5 meters. Move up 5", False),      # an amount, and its loop begun: read alone
+    (" Decrease altitude, 13 meters.", True),     # an amount: what follows it decides how it is read
+    (" Turn left one hundred and", True),         # a number begun and not ended
+    (" I'm going to go to the other", False),     # no number: the speech went on, nothing to wait for
+    (" May I have a 16-ounce dark", False),       # a number and other words after it: no command's amount
+])
+def test_the_free_pass_reads_on_only_where_more_words_could_change_the_judgement(whisper_model_dir, written, more):
+    from gcs_voice.asr.whisper_score import _may_say_more
+
+    tokenizer, forms = _english_tokenizer_and_forms(whisper_model_dir)
+    assert _may_say_more(tokenizer, forms, tokenizer.encode(written)) is more
+
+
+class _CountingModel:
+    """The CTranslate2 Whisper model, with the ``max_length`` of each free pass it was asked for."""
+
+    def __init__(self, model) -> None:
+        self.model, self.passes = model, []
+
+    def generate(self, *args, **kwargs):
+        self.passes.append(kwargs["max_length"])
+        return self.model.generate(*args, **kwargs)
+
+    def align(self, *args, **kwargs):
+        return self.model.align(*args, **kwargs)
+
+
+def _one_pass(model, tokenizer, forms, encoder_output, prompt, max_new_tokens, room):
+    """The free pass as it was before it could stop early: one greedy pass with room for an amount."""
+    from gcs_voice.asr.whisper_score import generation_length
+
+    free = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), room), beam_size=1,
+                          return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
+                          suppress_blank=True, suppress_tokens=[-1])[0]
+    return list(free.sequences_ids[0])[:room], list(free.logits[0]), float(free.no_speech_prob)
+
+
+def _score(recognizer, audio: np.ndarray):
+    from gcs_voice.asr.whisper_score import score_utterance
+
+    encoded, frames, _ = recognizer.encode_short(audio)
+    model = _CountingModel(recognizer.model.model)
+    s = recognizer.settings
+    scores = score_utterance(model, recognizer.tokenizer("en"), recognizer.phrase_forms("en"), encoded, frames,
+                             int(s.get("score_extra_tokens", 3)), int(s.get("score_top_k", 8)),
+                             str(s.get("score_rank_by", "mean")))
+    return scores, model.passes
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("clip", "passes"), [
+    ("real:en/go_left/left_8c7f81df_nohash_0.wav", 1),           # "Left. Left. Left. Left.": stopped
+    ("say:decrease altitude thirteen meters", 2),               # an amount, read on
+])
+def test_a_free_pass_that_stops_early_judges_as_one_that_ran_on(whisper_score, real_speech_dir, tmp_path,
+                                                                 monkeypatch, clip, passes):
+    """Stopped where nothing more could change the judgement, or read on from what Whisper wrote, the free pass
+    gives the same scores as one pass with room for an amount: the loops of short commands took a 180 ms pass
+    for a 50 ms one, and were the tail of the decision time (tools.bench_real timing)."""
+    from gcs_voice.asr import whisper_score as ws
+    from gcs_voice.audio.sources import read_wav
+
+    kind, _, what = clip.partition(":")
+    pcm = read_wav(real_speech_dir / what) if kind == "real" else pcm_of(what, tmp_path)
+    audio = np.frombuffer(pcm, "<i2").astype(np.float32) / 32768
+    staged_pass = ws._free_pass
+    staged, used = _score(whisper_score, audio)
+    monkeypatch.setattr(ws, "_free_pass", _one_pass)
+    one, [room] = _score(whisper_score, audio)
+    assert staged == one
+    assert len(used) == passes
+    assert used[0] < room  # the first pass had room for a command, not for an amount
+    if passes == 2:  # read on: the same tokens, and logits bit for bit, as one pass
+        rec, tokenizer, forms = whisper_score, whisper_score.tokenizer("en"), whisper_score.phrase_forms("en")
+        encoded, _, _ = rec.encode_short(audio)
+        prompt = list(tokenizer.sot_sequence) + [tokenizer.no_timestamps]
+        short = max(len(t) for t in forms.tokens) + int(rec.settings.get("score_extra_tokens", 3))
+        args = (rec.model.model, tokenizer, forms, encoded, prompt, short, short + ws.AMOUNT_TOKENS)
+        (tokens, logits, _), (one_tokens, one_logits, _) = staged_pass(*args), _one_pass(*args)
+        assert tokens == one_tokens and len(logits) == len(one_logits)
+        assert all(np.array_equal(np.asarray(a), np.asarray(b)) for a, b in zip(logits, one_logits))

@@ -41,7 +41,7 @@ from rapidfuzz import fuzz
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.domain.text import normalize_text
-from gcs_voice.domain.amounts import alike, number_words, split_amount, vocabulary
+from gcs_voice.domain.amounts import alike, ends_in_number, number_words, split_amount, vocabulary
 
 __all__ = ["PhraseForms", "PhraseScores", "canonical_tokens", "phrase_forms", "trim_silence", "first_unit_length",
            "generation_length", "only_repeats", "preselect", "score_utterance"]
@@ -409,6 +409,51 @@ def _aligned_span(result, words: int) -> tuple[float, float] | None:
     return min(frames) * 0.02, (max(frames) + 1) * 0.02
 
 
+def _free_pass(model, tokenizer, forms: PhraseForms, encoder_output, prompt: list[int], max_new_tokens: int,
+               room: int) -> tuple[list[int], list, float]:
+    """Whisper's greedy transcript: its tokens, the logits of each step and the no-speech probability.
+
+    An amount may take the transcript up to ``room`` tokens, but what Whisper writes after the first
+    ``max_new_tokens`` changes the judgement only when its first sentence holds an amount, or has not ended
+    there and has begun one (:func:`_may_say_more`); otherwise the pass stops there. A loop on a short
+    command ("Left. Left. Left. ...", "Up Up Up ...", "Move up 5 meters. Move up 5 ...") ran on to ``room``:
+    a 180 ms pass for a 50 ms one, the tail of the decision time. Continued, it is one greedy path: Whisper is given what it wrote
+    as a prefix, and the tokens and logits are those of one pass to ``room``, bit for bit
+    (``suppress_blank`` acts on the first token generated, which one pass did not suppress there).
+    """
+    options = dict(beam_size=1, return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
+                   suppress_tokens=[-1])
+    first = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), max_new_tokens),
+                           suppress_blank=True, **options)[0]
+    tokens = list(first.sequences_ids[0])[:max_new_tokens]
+    logits = list(first.logits[0])
+    if room > max_new_tokens and len(tokens) == max_new_tokens and _may_say_more(tokenizer, forms, tokens):
+        more = model.generate(encoder_output, [prompt + tokens], max_length=generation_length(len(prompt), room),
+                              suppress_blank=False, **options)[0]
+        logits = logits[:len(tokens)] + list(more.logits[0])[len(tokens):]
+        tokens = list(more.sequences_ids[0])[:room]
+    return tokens, logits, float(first.no_speech_prob)
+
+
+def _may_say_more(tokenizer, forms: PhraseForms, tokens: Sequence[int]) -> bool:
+    """Whether what Whisper writes after ``tokens`` could change the judgement, which reads an amount in the
+    first sentence only. It could when that sentence holds an amount and has ended, with no loop of it begun
+    after it (a loop is taken to run on: Whisper's loops do, and the sentence is then read alone), or has not
+    ended, is no loop, and ends in a number being said ("Turn left one hundred and"). An amount that begins
+    after ``tokens`` (filler words before a command) is not waited for: the speech went on, and nothing is
+    done."""
+    said = [tokenizer.decode([t]) for t in tokens]
+    end = next((i + 1 for i, piece in enumerate(said) if piece.strip() in (".", "!", "?")), None)
+    if end is not None:
+        holds_amount = amount_transcript(forms, tokenizer.decode(tokens[:end]), loose=True) is not None
+        return holds_amount and not only_repeats(said, end)
+    unit = first_unit_length(said)
+    if only_repeats(said, unit):  # "7 7 7 7", "A A A A": a loop is read on its first unit
+        return amount_transcript(forms, tokenizer.decode(tokens[:unit]), loose=True) is not None
+    heard = forms.dictionary.strip_skip_words(normalize_text(tokenizer.decode(tokens)))
+    return ends_in_number(heard, forms.dictionary.language)
+
+
 def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_frames: int,
                     extra_tokens: int = 3, top_k: int = 8, rank_by: str = "mean",
                     context: str = "", between_stages: Callable[[], None] | None = None) -> PhraseScores:
@@ -431,10 +476,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     # A command with an amount may run past that; anything else is judged on the first max_new_tokens only,
     # exactly as without amounts (Whisper's greedy path does not depend on how far it may go).
     room = max_new_tokens + (AMOUNT_TOKENS if vocabulary(forms.dictionary.language) is not None else 0)
-    free = model.generate(encoder_output, [prompt], max_length=generation_length(len(prompt), room),
-                          beam_size=1, return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
-                          suppress_blank=True, suppress_tokens=[-1])[0]
-    whole = list(free.sequences_ids[0])[:room]
+    whole, logits, no_speech_prob = _free_pass(model, tokenizer, forms, encoder_output, prompt, max_new_tokens, room)
     greedy = whole[:max_new_tokens]
     amount = None
     amount_at = None  # where the amount begins in Whisper's tokens, when the words before it are no phrase
@@ -450,7 +492,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
                     amount = None   # the amount is not where Whisper's tokens can show it: judged as without one
             if amount is not None:
                 greedy, max_new_tokens = whole[:end], room
-    steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in free.logits[0][:max_new_tokens]]
+    steps = [_log_softmax(np.asarray(lg, np.float64).ravel()) for lg in logits[:max_new_tokens]]
     pieces = [tokenizer.decode([t]) for t in greedy]
     if between_stages is not None:
         between_stages()
@@ -463,7 +505,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     loop = only_repeats(pieces, len(unit))
     cut = len(greedy) >= max_new_tokens and not loop
     if cut:
-        return PhraseScores((), tokenizer.decode(unit).strip(), -math.inf, float(free.no_speech_prob),
+        return PhraseScores((), tokenizer.decode(unit).strip(), -math.inf, no_speech_prob,
                             heard_text=tokenizer.decode(greedy).strip(), cut=True)
     chosen = preselect(forms, greedy, steps, "".join(pieces), top_k)
     if unit and any(ch.isalnum() for ch in tokenizer.decode(unit)):
@@ -528,7 +570,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
         best[id(written)] = (written, rank(free_lp), free_logprob)
     ordered = sorted(best.values(), key=lambda item: item[1], reverse=True)
     ranked = tuple((phrase, score) for phrase, score, _ in ordered)
-    return PhraseScores(ranked, free_text, free_logprob, float(free.no_speech_prob),
+    return PhraseScores(ranked, free_text, free_logprob, no_speech_prob,
                         not_command, ordered[0][2] if ordered else None,
                         tokenizer.decode(unit[:-1] if loop else greedy).strip(), cut, amount_gap, amount_rival,
                         spoken)

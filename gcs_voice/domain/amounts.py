@@ -220,6 +220,20 @@ def split_amount(text: str, lang: str) -> Split:
     return Split(command, Amount(value, unit, height, said), words=said, number=number)
 
 
+def ends_in_number(text: str, lang: str) -> bool:
+    """Whether a normalised transcript (skip words removed) ends in an amount being said: a number (words or
+    digits, or a word Whisper writes for one before a unit, "for meters") and after it only words an amount
+    may use ("one hundred and", "3 meters"). A number followed by other words ("a 16-ounce dark roast") is
+    not the amount of a command: that would end the transcript."""
+    vocab = vocabulary(lang)
+    if vocab is None:
+        return False
+    words = _words(text)
+    last = max((i for i, w in enumerate(words) if w.isdigit() or w in vocab.numbers or w in vocab.before_unit),
+               default=None)
+    return last is not None and all(w in vocab.words or w.isdigit() for w in words[last + 1:])
+
+
 def amount_reason(amount: Amount, action: str, lang: str) -> tuple[Amount | None, str]:
     """The amount made definite for ``action`` (a unit given where none was said), or the reason it does
     not fit (a turn in metres, a move in degrees, a height for a sideways move, out of range)."""
