@@ -435,6 +435,11 @@ def _free_pass(model, tokenizer, forms: PhraseForms, encoder_output, prompt: lis
     return tokens, logits, float(first.no_speech_prob)
 
 
+def _first_sentence_end(pieces: Sequence[str]) -> int | None:
+    """How many leading tokens make the first sentence of a transcript (None: it has not ended)."""
+    return next((i + 1 for i, piece in enumerate(pieces) if piece.strip() in (".", "!", "?")), None)
+
+
 def _may_say_more(tokenizer, forms: PhraseForms, tokens: Sequence[int]) -> bool:
     """Whether what Whisper writes after ``tokens`` could change the judgement, which reads an amount in the
     first sentence only. It could when that sentence holds an amount and has ended, with no loop of it begun
@@ -443,7 +448,7 @@ def _may_say_more(tokenizer, forms: PhraseForms, tokens: Sequence[int]) -> bool:
     after ``tokens`` (filler words before a command) is not waited for: the speech went on, and nothing is
     done."""
     said = [tokenizer.decode([t]) for t in tokens]
-    end = next((i + 1 for i, piece in enumerate(said) if piece.strip() in (".", "!", "?")), None)
+    end = _first_sentence_end(said)
     if end is not None:
         holds_amount = amount_transcript(forms, tokenizer.decode(tokens[:end]), loose=True) is not None
         return holds_amount and not only_repeats(said, end)
@@ -483,7 +488,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     if room > max_new_tokens:
         # its first sentence, when what follows only loops over it ("Turn left 45 degrees. Turn left 45 ...")
         said = [tokenizer.decode([t]) for t in whole]
-        end = next((i + 1 for i, piece in enumerate(said) if piece.strip() in (".", "!", "?")), len(whole))
+        end = _first_sentence_end(said) or len(whole)
         if (end < len(whole) and only_repeats(said, end)) or len(whole) < room:
             amount = amount_transcript(forms, tokenizer.decode(whole[:end]), loose=True)
             if amount is not None and amount.command not in forms.dictionary.by_key:
