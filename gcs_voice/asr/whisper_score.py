@@ -417,9 +417,9 @@ def _free_pass(model, tokenizer, forms: PhraseForms, encoder_output, prompt: lis
     ``max_new_tokens`` changes the judgement only when its first sentence holds an amount, or has not ended
     there and has begun one (:func:`_may_say_more`); otherwise the pass stops there. A loop on a short
     command ("Left. Left. Left. ...", "Up Up Up ...", "Move up 5 meters. Move up 5 ...") ran on to ``room``:
-    a 180 ms pass for a 50 ms one, the tail of the decision time. Continued, it is one greedy path: Whisper is given what it wrote
-    as a prefix, and the tokens and logits are those of one pass to ``room``, bit for bit
-    (``suppress_blank`` acts on the first token generated, which one pass did not suppress there).
+    a 180 ms pass for a 50 ms one, the tail of the decision time. Continued, it is one greedy path: Whisper
+    is given what it wrote as a prefix, and the tokens and logits are those of one pass to ``room``, bit for
+    bit (``suppress_blank`` acts on the first token generated, which one pass did not suppress there).
     """
     options = dict(beam_size=1, return_scores=True, return_no_speech_prob=True, return_logits_vocab=True,
                    suppress_tokens=[-1])
