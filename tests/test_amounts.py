@@ -9,7 +9,7 @@ import pytest
 from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link.state import VehicleState
 from gcs_voice.settings import load_settings
-from gcs_voice.domain.amounts import Amount, alike, amount_reason, number_words, split_amount
+from gcs_voice.domain.amounts import Amount, alike, amount_reason, ends_in_number, number_words, split_amount
 
 SETTINGS = load_settings()
 
@@ -227,3 +227,18 @@ def test_a_paused_bounded_motion_resumes_toward_the_same_target() -> None:
     mapper.forget_pause()
     mapper.apply("stop", end)                 # a stop decided during the pause: the target is forgotten
     assert mapper.bound is None and mapper.paused_bound is None
+
+
+@pytest.mark.parametrize(("text", "lang", "ends"), [
+    ("turn left one hundred and", "en", True),       # the number is still being said
+    ("go forward 3 meters", "en", True),
+    ("go to the right for", "en", True),             # "for" may be Whisper's four before a unit
+    ("may i have a 16 ounce dark", "en", False),     # a number, then words no amount uses
+    ("i m going to go to the other", "en", False),
+    ("gira a la derecha cuarenta y", "es", True),
+    ("avanza tres metros", "es", True),
+    ("quiero un cafe con leche", "es", False),
+])
+def test_a_transcript_ends_in_a_number_only_when_an_amount_is_being_said(text: str, lang: str, ends: bool) -> None:
+    """What tells Whisper's free pass to read on for an amount (gcs_voice/asr/whisper_score.py, _may_say_more)."""
+    assert ends_in_number(text, lang) is ends
