@@ -487,6 +487,7 @@ def score_utterance(model, tokenizer, forms: PhraseForms, encoder_output, num_fr
     amount_at = None  # where the amount begins in Whisper's tokens, when the words before it are no phrase
     if room > max_new_tokens:
         # its first sentence, when what follows only loops over it ("Turn left 45 degrees. Turn left 45 ...")
+        # (_may_say_more foresees this reading to stop the free pass early: change the two together)
         said = [tokenizer.decode([t]) for t in whole]
         end = _first_sentence_end(said) or len(whole)
         if (end < len(whole) and only_repeats(said, end)) or len(whole) < room:
