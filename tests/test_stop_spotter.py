@@ -77,3 +77,27 @@ def test_over_the_bridge_voice_it_is_stricter_and_the_usual_search_comes_back(re
     shipped = tomllib.loads(SETTINGS_PATH.read_text(encoding="utf-8"))
     for lang in ("en", "es"):  # stricter over the bridge's voice in every language
         assert shipped[lang]["over_voice_threshold"] > shipped[lang]["threshold"], lang
+
+
+def test_a_word_on_the_bridge_own_echo_is_dismissed_and_a_stop_after_it_still_counts(spotter, real_speech_dir):
+    """Over the bridge's voice a stop word heard when the canceller says all it gave out was its own echo's
+    remains is dismissed; the stream listens on afresh, so a real stop said after those remains still stops."""
+    stops = [read_wav(p) for p in _held_out(real_speech_dir, "stop")]
+    pcm = next(s for s in stops if spotter.spot(s, over_voice=True).fired)
+    remains = [True]  # what the canceller says while the first "stop" is heard; then a voice comes through
+    stream = spotter.start_stream(True, own_echo=lambda: remains[0])
+    for i in range(0, len(pcm), 1024):
+        stream.accept(pcm[i:i + 1024])
+    assert stream.word is None and stream.dismissed, "a stop word heard on the bridge's own remains stopped"
+    remains[0] = False
+    for i in range(0, 16_000, 1024):  # half a second of silence: the dismissed word does not come back
+        stream.accept(bytes(1024))
+    assert stream.word is None, "the dismissed word came back once the canceller heard a voice"
+    for i in range(0, len(pcm), 1024):
+        stream.accept(pcm[i:i + 1024])
+    hit = stream.finish()
+    assert hit.fired, "after dismissed remains, the pilot's stop was not heard"
+    # and without the canceller's word (the usual search, or no echo canceller) nothing is dismissed
+    plain = spotter.start_stream(True)
+    plain.accept(pcm)
+    assert plain.finish().fired and plain.dismissed == []

@@ -20,11 +20,16 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from tools.bench_stream import voiced_level
 from tools.real_speech import SHARED, load_recordings
+
+if TYPE_CHECKING:
+    from gcs_voice.asr.stop_spotter import StopSpotter
+    from gcs_voice.audio.echo_cancel import EchoCanceller
 
 RATE = 16_000
 
@@ -32,6 +37,63 @@ RATE = 16_000
 def voiced_dbfs(x: np.ndarray) -> float:
     """Level of the voiced frames (tools.bench_stream.voiced_level), in dBFS, of int16-scaled samples."""
     return float(20 * np.log10(voiced_level(x / 32768.0)[0] + 1e-12))
+
+
+class Cancelled:
+    """What the canceller gives the spotter of ``mic``, fed chunk by chunk as the microphone path feeds it, and
+    after each chunk whether it says all it gave out of late is its own echo's remains
+    (``EchoCanceller.only_remains``: a stop word heard then is dismissed, as ``StopPath`` does)."""
+
+    CHUNK = 512  # the microphone's block (gcs_voice.audio.sources.MICROPHONE_BLOCK_S)
+
+    def __init__(self, canceller: EchoCanceller, mic: np.ndarray, reference: np.ndarray) -> None:
+        self.chunks, self.remains = [], []
+        for i in range(0, mic.size, self.CHUNK):
+            out = canceller.process(mic[i:i + self.CHUNK], reference[i:i + self.CHUNK])
+            self.chunks.append(np.clip(np.round(out), -32768, 32767).astype("<i2").tobytes())
+            self.remains.append(canceller.only_remains())
+
+    def spotted(self, over: StopSpotter) -> bool:
+        """Whether the spotter ``over`` fires over the bridge's voice."""
+        now = [0]
+        stream = over.start_stream(True, lambda: self.remains[now[0]])
+        for now[0], pcm in enumerate(self.chunks):
+            stream.accept(pcm)
+        return stream.finish().fired
+
+
+def spotted_remains(cue: np.ndarray, canceller_settings: dict, spotter: StopSpotter, trials: int, seed: int,
+                    dismiss: bool = True, delay_s: float = 0.06, tail_s: float = 0.4
+                    ) -> list[tuple[int, int, int, str]]:
+    """The bridge's ``cue`` (float samples) played 4 times into a silent room, at a pilot's level (-26 dBFS
+    voiced), ``delay_s`` late on the direct path, its first sample anywhere in a microphone block and the
+    player's clock up to 10 ms off (as a busy machine leaves them), one canceller per session; the stop spotter
+    over the bridge's voice fed chunk by chunk as the session feeds it (``dismiss``: with the canceller's word
+    on its own echo's remains, as ``StopPath`` has it). (trial, play, phase, word) for each stop it fired."""
+    from gcs_voice.audio.echo_cancel import EchoCanceller
+
+    echo = (cue * 10 ** ((-26.0 - voiced_dbfs(cue)) / 20)).astype(np.float32)
+    block, delay, tail = Cancelled.CHUNK, int(delay_s * RATE), int(tail_s * RATE)
+    rng = np.random.default_rng(seed)
+    fired = []
+    for trial in range(trials):
+        canceller = EchoCanceller(**canceller_settings)
+        phase, late = int(rng.integers(0, block)), int(rng.integers(0, 160))
+        n = -(-(phase + delay + late + cue.size + tail) // block) * block
+        mic, reference = np.zeros(n), np.zeros(n)
+        reference[phase:phase + cue.size] = cue
+        mic[phase + delay + late:phase + delay + late + cue.size] = echo
+        mic = np.trunc(mic)  # what the sound card gives: 16-bit samples
+        for k in range(4):
+            canceller.drop_pending()  # a new stretch of deaf time
+            stream = spotter.start_stream(True, canceller.only_remains if dismiss else None)
+            for i in range(0, n, block):  # chunk by chunk, as the microphone gives them
+                out = canceller.process(mic[i:i + block], reference[i:i + block])
+                stream.accept(np.clip(np.round(out), -32768, 32767).astype("<i2").tobytes())
+            hit = stream.finish()
+            if hit.fired:
+                fired.append((trial, k, phase, hit.word))
+    return fired
 
 
 def room_response(rt60_s: float, direct_to_reverb_db: float, seed: int = 0, length_s: float = 0.5) -> np.ndarray:
@@ -87,6 +149,11 @@ def main(argv: list[str] | None = None) -> int:
                              "(default: the shipped over_voice_threshold of stop_spotter.toml)")
     parser.add_argument("--speech", type=Path, default=SHARED / "speech")
     parser.add_argument("--rounds", type=int, default=3, help="times every cue is played, in a new order each")
+    parser.add_argument("--alignments", type=int, default=0,
+                        help="also play each of --alignment-cues in this many sessions (4 plays each), the cue "
+                             "anywhere in the microphone's blocks: stops fired with and without the canceller's "
+                             "word on its own echo's remains")
+    parser.add_argument("--alignment-cues", default="going left;going down;fence reached")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     args = parser.parse_args(argv)
 
@@ -110,8 +177,11 @@ def main(argv: list[str] | None = None) -> int:
         """What the microphone picks up of what the speaker plays: late, reverberated."""
         return np.concatenate([np.zeros(delay), np.convolve(y, response)])
 
-    def spotted(x: np.ndarray, over: StopSpotter | None = None) -> bool:
-        """Whether the spotter fires: on a stop alone (the usual threshold), or over the bridge's voice."""
+    def spotted(x: np.ndarray | Cancelled, over: StopSpotter | None = None) -> bool:
+        """Whether the spotter fires: on a stop alone (the usual threshold), or over the bridge's voice (on
+        what the canceller gave out, chunk by chunk, with its word on its own echo's remains, as a session)."""
+        if isinstance(x, Cancelled):
+            return x.spotted(over)
         pcm = np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()
         return spotter.spot(pcm).fired if over is None else over.spot(pcm, over_voice=True).fired
 
@@ -147,7 +217,7 @@ def main(argv: list[str] | None = None) -> int:
                         m[:e.size], r[:warm_voice.size] = e, warm_voice * gain
                         canceller.process(m, r)
                         canceller.drop_pending()  # the cue is a clip of its own, not the earlier one's continuation
-                    outs.append(canceller.process(mic, reference))
+                    outs.append(Cancelled(canceller, mic, reference))
             for k, over in enumerate(over_voice):
                 for i, out in enumerate(outs):
                     hits[k * len(outs) + i] += spotted(out, over)
@@ -179,11 +249,30 @@ def main(argv: list[str] | None = None) -> int:
             outs = [mic]
             for canceller in cancellers:
                 canceller.drop_pending()
-                outs.append(canceller.process(mic, reference))
+                outs.append(Cancelled(canceller, mic, reference))
             for k, over in enumerate(over_voice):
                 for j, out in enumerate(outs):
                     false_stops[k * len(outs) + j] += spotted(out, over)
     played = args.rounds * len(rendered)
+    aligned: list[str] = []
+    if args.alignments:
+        # Where the cue falls within the microphone's blocks changes what the canceller leaves of it: each cue
+        # in many sessions, the first sample anywhere in a block and the clock up to 10 ms off
+        cancelled = [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
+                     for c in settings]
+        heads = [f"{named(label, t)}, {how}" for t in strict for label in cancelled
+                 for how in ("every stop word heard", "those on its own echo's remains dismissed")]
+        aligned = [f"The same cues in {args.alignments} sessions of 4 plays each, the cue's first sample anywhere in "
+                   "the microphone's 32 ms block and the player's clock up to 10 ms off (as a busy machine leaves "
+                   "them), the direct path 60 ms late at -26 dBFS voiced, chunk by chunk as a session feeds the "
+                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays.",
+                   "", "| cue | " + " | ".join(heads) + " |", "| --- | " + " | ".join("---" for _ in heads) + " |"]
+        for words in args.alignment_cues.split(";"):
+            counts = [len(spotted_remains(cue(words), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s))
+                      for over in over_voice for c in settings for d in (False, True)]
+            aligned.append(f"| {words} | " + " | ".join(f"{n}/{4 * args.alignments}" for n in counts) + " |")
+            print(aligned[-1], flush=True)
+        aligned.append("")
     false_labels = [named(label, t) for t in strict for label in
                     ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
                                           for c in settings]]
@@ -194,6 +283,7 @@ def main(argv: list[str] | None = None) -> int:
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
                + (f" --cancel '{args.cancel}'" if args.cancel else "")
                + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")
+               + (f" --alignments {args.alignments} --alignment-cues '{args.alignment_cues}'" if args.alignments else "")
                + (f" --out {args.out}" if args.out else ""))
     path = (f"reverberated by a statistical room (RT60 {args.rt60:g} s, direct-to-reverberant {args.drr_db:g} dB, "
             "`room_response` in the tool)" if args.rt60 > 0 else "the direct path only, no room")
@@ -229,6 +319,7 @@ def main(argv: list[str] | None = None) -> int:
         "| --- | " + " | ".join("---" for _ in false_labels) + " |",
         false_row,
         "",
+        *aligned,
     ])
     print(report)
     if args.out:

@@ -175,6 +175,9 @@ def analyse(work: Path, shown: str, took: str, echo_db: float, delay_ms: float, 
                    for p in placed)
 
     own_spotted = [e for e in spotted if not spot_is_pilots(e)]
+    # stop words the spotter heard over the bridge's voice and the canceller said were its own echo's remains
+    dismissed = [e for e in events if e["kind"] == "own_echo"]
+    pilots_dismissed = [e for e in dismissed if pilot(e["t"] - t0 - 1.0, e["t"] - t0)]
     over_spotted = [e for e in spotted if over_voice(e)]
     own_over = [e for e in own_spotted if over_voice(e)]
     over = [p for p in placed if any(a <= p.voiced_end_s and p.voiced_start_s <= b for a, b in deaf)]
@@ -219,6 +222,8 @@ def analyse(work: Path, shown: str, took: str, echo_db: float, delay_ms: float, 
         f"| rejections | {len(rejected)} | {len(own_rejected)} |",
         f"| stops fired by the spotter | {len(spotted)} | {len(own_spotted)} |",
         f"| of them over the bridge's voice | {len(over_spotted)} | {len(own_over)} |",
+        f"| stop words dismissed as the bridge's own echo's remains (no stop) | {len(dismissed)} | "
+        f"{len(dismissed) - len(pilots_dismissed)} (the rest near a pilot's clip: {len(pilots_dismissed)}) |",
         "",
         "A stop over the bridge's voice is put down to the pilot only if the pilot's voiced speech (within "
         f"{VOICE_MARGIN_S:g} s) is in the audio the spotter heard from the bridge's sound on; any other stop if a "

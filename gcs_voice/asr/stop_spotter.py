@@ -16,6 +16,7 @@ import tempfile
 import threading
 import time
 import tomllib
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -94,9 +95,12 @@ class StopSpotter:
         stream.accept(pcm)
         return stream.finish()
 
-    def start_stream(self, over_voice: bool = False) -> SpotStream:
-        """Spot while the utterance is still arriving: ``accept`` says as soon as a stop word is heard."""
-        return SpotStream(self, over_voice)
+    def start_stream(self, over_voice: bool = False, own_echo: Callable[[], bool] | None = None) -> SpotStream:
+        """Spot while the utterance is still arriving: ``accept`` says as soon as a stop word is heard.
+
+        ``own_echo`` (over the bridge's voice): whether what was heard of late is only what the echo canceller
+        left of the bridge's own sound (``PlayedEcho.only_remains``); a word heard then is dismissed."""
+        return SpotStream(self, over_voice, own_echo)
 
 
 def _word(hyp: object) -> str | None:
@@ -107,12 +111,16 @@ def _word(hyp: object) -> str | None:
 class SpotStream:
     """One utterance fed in pieces; the decoder is held (a lock) from the first piece to ``finish``.
 
-    ``finish`` decodes the same whole utterance as ``spot`` does: the stream only decides earlier.
+    ``finish`` decodes the same whole utterance as ``spot`` does: the stream only decides earlier. A word
+    ``own_echo`` dismisses is kept in ``dismissed``, and the stream listens on afresh from there.
     """
 
-    def __init__(self, spotter: StopSpotter, over_voice: bool = False) -> None:
+    def __init__(self, spotter: StopSpotter, over_voice: bool = False, own_echo: Callable[[], bool] | None = None
+                 ) -> None:
         self.spotter = spotter
         self.over_voice = over_voice
+        self.own_echo = own_echo
+        self.dismissed: list[str] = []
         self.word: str | None = None
         self.ms = 0.0
         self._open = False
@@ -132,9 +140,22 @@ class SpotStream:
             d.start_utt()
         d.process_raw(pcm, False, False)
         if self.word is None:
-            self.word = _word(d.hyp())
+            word = _word(d.hyp())
+            if word is not None and self._own(word):
+                d.end_utt()  # our own echo's remains: listen on afresh, a stop said after them still counts
+                d.reinit_feat()
+                d.start_utt()
+            else:
+                self.word = word
         self.ms += (time.perf_counter() - started) * 1000.0
         return self.word
+
+    def _own(self, word: str) -> bool:
+        """Whether ``word`` was heard in nothing but the bridge's own echo's remains (then it is dismissed)."""
+        if self.own_echo is not None and self.own_echo():
+            self.dismissed.append(word)
+            return True
+        return False
 
     def finish(self) -> StopHit:
         """End the utterance (idempotent): whether a stop word was anywhere in it, and the decoding time."""
@@ -145,8 +166,9 @@ class SpotStream:
                 d = self.spotter.decoder
                 try:
                     d.end_utt()
-                    if self.word is None:
-                        self.word = _word(d.hyp())
+                    word = _word(d.hyp()) if self.word is None else None
+                    if word is not None and not self._own(word):
+                        self.word = word
                 finally:
                     self.spotter._lock.release()
                 self.ms += (time.perf_counter() - started) * 1000.0

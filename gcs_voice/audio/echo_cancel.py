@@ -35,12 +35,14 @@ class EchoCanceller:
     step at full confidence, ``min_step`` its floor, ``regularization`` the share of the reference's mean
     power added to each bin's in the normalisation, ``comfort_noise_dbfs`` white noise under the output
     (relative to 16-bit full scale: samples in int16 units). Samples come in any chunk size; the output lags by
-    less than one block.
+    less than one block. ``residual_gate_db``, ``window_s`` and ``loud_db``: see ``only_remains`` (None: it never
+    says so).
     """
 
     def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
                  min_step: float = 0.5, regularization: float = 0.1, suppress: float = 1.0,
-                 comfort_noise_dbfs: float | None = None) -> None:
+                 comfort_noise_dbfs: float | None = None, residual_gate_db: float | None = None,
+                 window_s: float = 0.6, loud_db: float = 6.0) -> None:
         if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
             raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
                              f"length_s {length_s} above 0")
@@ -53,6 +55,12 @@ class EchoCanceller:
         #: white noise this far below 16-bit full scale under everything it returns (None: none)
         self.comfort = None if comfort_noise_dbfs is None else 32768.0 * 10 ** (comfort_noise_dbfs / 20)
         self._noise = np.random.default_rng(0)  # seeded: the same audio gives the same output
+        self.rate = rate
+        self.residual_gate_db = residual_gate_db
+        self.window_s = window_s
+        self.loud_db = loud_db
+        #: power per block of the microphone and of what was left of it, the last few seconds (newest last)
+        self._levels: list[tuple[float, float]] = []
         bins = block + 1
         self._w = np.zeros((self.parts, bins), np.complex128)  # the echo path, per partition
         self._x = np.zeros((self.parts, bins), np.complex128)  # spectra of the last reference blocks, newest first
@@ -74,7 +82,10 @@ class EchoCanceller:
         n = (self._mic_in.size // self.block) * self.block
         out = np.empty(n)
         for i in range(0, n, self.block):
-            out[i:i + self.block] = self._step(self._mic_in[i:i + self.block], self._ref_in[i:i + self.block])
+            mic_block = self._mic_in[i:i + self.block]
+            out[i:i + self.block] = self._step(mic_block, self._ref_in[i:i + self.block])
+            self._levels.append((float(np.mean(mic_block ** 2)), float(np.mean(out[i:i + self.block] ** 2))))
+        del self._levels[:-int(4.0 * self.rate / self.block)]
         self._mic_in, self._ref_in = self._mic_in[n:], self._ref_in[n:]
         if self.comfort is not None:
             # Comfort noise, as every echo canceller's output has: what is left of the bridge's words in a silent
@@ -84,8 +95,31 @@ class EchoCanceller:
         return out
 
     def drop_pending(self) -> None:
-        """Forget the part-block waiting for more samples (what is learned of the room stays)."""
+        """Forget the part-block waiting for more samples, and how loud the microphone was (what is learned of
+        the room stays)."""
         self._mic_in, self._ref_in = np.zeros(0), np.zeros(0)
+        self._levels.clear()
+
+    def only_remains(self) -> bool:
+        """Whether, in the last ``window_s``, the microphone was loud (within ``loud_db`` of its loudest) only where
+        the canceller took it at least ``residual_gate_db`` down: what it gave out is our own echo's remains,
+        not a voice over it.
+
+        A double-talk detector on the canceller's own work, judged over a word rather than a block: a pilot
+        talking over the bridge comes through whole (his vowels are near the microphone's level, whether or
+        not the bridge is loud there), while what is left of the bridge alone stays far below it. The keyword
+        spotter normalises the level away: to it, what was left of "fence reached" 17 dB down was as loud
+        as a pilot, and sounded like "stay"."""
+        if self.residual_gate_db is None:
+            return False
+        n = int(round(self.window_s * self.rate / self.block))
+        if len(self._levels) < 3:
+            return False
+        smooth = np.ones(3) / 3  # powers over 48 ms: a click is no vowel
+        mic = np.convolve([m for m, _o in self._levels[-n:]], smooth, "valid")
+        out = np.convolve([o for _m, o in self._levels[-n:]], smooth, "valid")
+        loud = mic >= mic.max() * 10 ** (-self.loud_db / 10)
+        return bool(np.all(out[loud] < mic[loud] * 10 ** (-self.residual_gate_db / 10)))
 
     def _step(self, mic: np.ndarray, ref: np.ndarray) -> np.ndarray:
         b = self.block
@@ -141,3 +175,8 @@ class PlayedEcho:
         self._next_t = start_t + mic.size / self.rate
         out = self.canceller.process(mic, self.gate.played(start_t, mic.size))
         return np.clip(np.round(out), -32768, 32767).astype("<i2").tobytes()
+
+    def only_remains(self) -> bool:
+        """Whether what it gave the spotter of late is only what was left of the bridge's own sound
+        (``EchoCanceller.only_remains``): a stop word heard in it is not the pilot's."""
+        return self.canceller.only_remains()

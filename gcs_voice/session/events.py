@@ -20,6 +20,8 @@ KINDS: dict[str, str] = {
     "session": "start/end of a session: phase, argv, versions, files",
     "link": "state connected|lost|restored, autopilot, vehicle ids",
     "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t",
+    "own_echo": "over the bridge's voice, the stop spotter heard a stop word in nothing but what the echo canceller "
+                "left of the bridge's own sound (no stop): words",
     "paused": "the motion held while an utterance is decided (state paused), then resumed after speech that was "
               "not understood (resumed) or left stopped (stayed): action, utterance_end_t, decided_t (the setpoint's "
               "time stamp in the tlog), sent_t",

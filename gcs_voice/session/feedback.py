@@ -135,6 +135,11 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     return Phrases(str(data.get("language", language)), str(data.get("voice", language)), **tables)
 
 
+#: the echo canceller's settings in sounds.toml [echo] (``EchoCanceller``'s keywords)
+ECHO_KEYS = ("length_s", "step", "min_step", "regularization", "suppress", "comfort_noise_dbfs", "residual_gate_db",
+             "window_s", "loud_db")
+
+
 def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSettings:
     data = _load(path)
     tones = data.get("tones", {})
@@ -145,12 +150,9 @@ def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSetti
     cancel = None
     if echo.get("cancel", False):
         try:
-            cancel = {key: float(echo[key]) for key in ("length_s", "step", "min_step", "regularization", "suppress",
-                                                         "comfort_noise_dbfs") if key in echo}
+            cancel = {key: float(echo[key]) for key in ECHO_KEYS if key in echo}
         except (TypeError, ValueError):
-            raise GcsVoiceError(f"{path}: [echo] length_s, step, min_step, regularization, suppress and "
-                                f"comfort_noise_dbfs must be "
-                                "numbers") from None
+            raise GcsVoiceError(f"{path}: [echo] {', '.join(ECHO_KEYS)} must be numbers") from None
     return SoundSettings(float(data.get("amplitude", 0.3)), float(data.get("fade_s", 0.005)), tones,
                          float(echo.get("tail_s", 0.4)), int(data.get("speech", {}).get("speed_wpm", 175)), cancel)
 

@@ -58,12 +58,14 @@ class StopPath:
     """The stop spotter between the ear and the bridge: a stop word is a stop request at once.
 
     ``feed`` takes the audio of the utterance in progress (the segmenter's listener, or the recorded
-    chunks) and ``None`` at its end. One utterance at a time, from one thread.
+    chunks) and ``None`` at its end. One utterance at a time, from one thread. ``own_echo`` says when what is
+    heard over the bridge's voice is only what the echo canceller left of it (``PlayedEcho.only_remains``).
     """
 
     def __init__(self, spotter: StopSpotter, bus: EventBus) -> None:
         self.spotter = spotter
         self.bus = bus
+        self.own_echo: Callable[[], bool] | None = None
         self._stream: SpotStream | None = None
         self._fired = False
 
@@ -75,7 +77,8 @@ class StopPath:
         if self._stream is not None and self._stream.over_voice != over_voice:
             self.end(bridge)  # the bridge started or stopped speaking: what came before is decided on its own
         if self._stream is None:
-            self._stream, self._fired = self.spotter.start_stream(over_voice), False
+            self._stream = self.spotter.start_stream(over_voice, self.own_echo if over_voice else None)
+            self._fired = False
         word = self._stream.accept(pcm)
         if word and not self._fired:
             self._fired = True
@@ -87,6 +90,9 @@ class StopPath:
             return None
         stream, self._stream = self._stream, None
         hit = stream.finish()
+        if stream.dismissed:
+            self.bus.emit("own_echo", f"heard {', '.join(map(repr, stream.dismissed))} in what was left of the bridge's "
+                          "own voice: not a stop", words=stream.dismissed)
         if hit.fired and not self._fired:
             self._stop(bridge, hit.word, end_t, during=False, over_voice=stream.over_voice)
         self._fired = False

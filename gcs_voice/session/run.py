@@ -297,6 +297,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
             from gcs_voice.session.keys import talk
 
             stop_path = pipeline.stop_path
+            if stop_path is not None and clean is not None:
+                stop_path.own_echo = clean.only_remains
             on_speech = (lambda pcm: stop_path.feed(bridge, pcm)) if stop_path is not None else None
             over_voice = (lambda pcm: stop_path.feed(bridge, pcm, over_voice=True)) if stop_path is not None else None
             tentatives = TentativeUtterances()  # decided while the closing silence runs out
