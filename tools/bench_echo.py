@@ -267,10 +267,10 @@ def main(argv: list[str] | None = None) -> int:
                    "them), the direct path 60 ms late at -26 dBFS voiced, chunk by chunk as a session feeds the "
                    "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays.",
                    "", "| cue | " + " | ".join(heads) + " |", "| --- | " + " | ".join("---" for _ in heads) + " |"]
-        for words in args.alignment_cues.split(";"):
-            counts = [len(spotted_remains(cue(words), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s))
+        for said in args.alignment_cues.split(";"):
+            counts = [len(spotted_remains(cue(said), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s))
                       for over in over_voice for c in settings for d in (False, True)]
-            aligned.append(f"| {words} | " + " | ".join(f"{n}/{4 * args.alignments}" for n in counts) + " |")
+            aligned.append(f"| {said} | " + " | ".join(f"{n}/{4 * args.alignments}" for n in counts) + " |")
             print(aligned[-1], flush=True)
         aligned.append("")
     false_labels = [named(label, t) for t in strict for label in
