@@ -194,11 +194,12 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     says "go left", the bridge answers "going left" into the microphone. What the canceller left of its words in
     a silent room (a faint, lone sound, -70 dBFS) sounded like "stay" to the spotter, which normalises the level
     away: the vehicle stopped after 24 of 44 such answers in a 30-minute session (tools.bench_feedback_echo).
-    Under the canceller's comfort noise, spotted at the stricter threshold over the bridge's voice and with the
-    canceller's word on its own echo's remains: at most one of ten. Not none: where the answer falls within the
-    microphone's blocks, which a busy machine moves, still decides some (this test failed beside four busy
-    processes once in about ten runs with none asked); the rate is measured, not asserted here: tools.bench_echo
-    --alignments, tools.bench_feedback_echo (issue 32)."""
+    Here, through the live path: each answer is one stretch the spotter hears over the bridge's voice, and at most
+    one of ten stops the vehicle. Not none: where the answer falls within the microphone's blocks, which a busy
+    machine moves, still decides some (with none asked, this failed beside four busy processes about once in ten
+    runs). Nor is this where the rate is guarded: on this recording even session 23's settings (no comfort noise,
+    the usual threshold) and a canceller that learns nothing stay under two; the rate is measured by
+    tools.bench_echo --alignments and tools.bench_feedback_echo, and test_fewer_stops_... guards the dismissal."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from tools.real_speech import load_recordings
@@ -218,12 +219,14 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     spotter = load_stop_spotter(["en"])
     streams: list = []
     fired_over_voice: list[str] = []
+    stretches_over_voice = [0]
 
     def listener(over_voice: bool):
         def hear(pcm: bytes | None) -> None:  # as the session's StopPath: one stream per stretch of audio
             if pcm is None:
                 if streams:
                     hit = streams.pop().finish()
+                    stretches_over_voice[0] += over_voice
                     if hit.fired and over_voice:
                         fired_over_voice.append(hit.word)
                 return
@@ -249,7 +252,8 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     list(microphone_utterances(on_speech=listener(False), on_speech_over_voice=listener(True), chunks=chunks(),
                                deaf=gate.deaf, clean=clean))
     assert len(room.played) == len(pilot)
-    assert len(fired_over_voice) <= 1, f"the bridge's own 'going left' stopped the vehicle {len(fired_over_voice)} times"
+    assert stretches_over_voice[0] == len(pilot), (stretches_over_voice[0], "stretches over the voice", len(pilot))
+    assert len(fired_over_voice) <= 1, f"the bridge's own 'going left' stopped it {len(fired_over_voice)} times"
 
 
 def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
@@ -264,8 +268,8 @@ def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
     settings = load_sound_settings()
     spotter = load_stop_spotter(["en"])
     cue = _cue("fence reached")
-    heard = spotted_remains(cue, settings.echo_cancel, spotter, trials=25, seed=2, dismiss=False, tail_s=settings.tail_s)
-    dismissed = spotted_remains(cue, settings.echo_cancel, spotter, trials=25, seed=2, tail_s=settings.tail_s)
+    heard, dismissed = (spotted_remains(cue, settings.echo_cancel, spotter, trials=25, seed=2, dismiss=d,
+                                        tail_s=settings.tail_s) for d in (False, True))
     assert len(heard) >= 4, f"the remains fired {len(heard)} stops: the test would prove nothing"
     assert len(dismissed) < len(heard), f"{len(dismissed)} stops fired on the remains, {len(heard)} before"
 

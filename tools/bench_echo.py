@@ -283,7 +283,8 @@ def main(argv: list[str] | None = None) -> int:
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
                + (f" --cancel '{args.cancel}'" if args.cancel else "")
                + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")
-               + (f" --alignments {args.alignments} --alignment-cues '{args.alignment_cues}'" if args.alignments else "")
+               + (f" --alignments {args.alignments} --alignment-cues '{args.alignment_cues}'" if args.alignments
+                  else "")
                + (f" --out {args.out}" if args.out else ""))
     path = (f"reverberated by a statistical room (RT60 {args.rt60:g} s, direct-to-reverberant {args.drr_db:g} dB, "
             "`room_response` in the tool)" if args.rt60 > 0 else "the direct path only, no room")

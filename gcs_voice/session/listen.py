@@ -91,8 +91,9 @@ class StopPath:
         stream, self._stream = self._stream, None
         hit = stream.finish()
         if stream.dismissed:
-            self.bus.emit("own_echo", f"heard {', '.join(map(repr, stream.dismissed))} in what was left of the bridge's "
-                          "own voice: not a stop", words=stream.dismissed)
+            heard = ", ".join(map(repr, stream.dismissed))
+            self.bus.emit("own_echo", f"heard {heard} in what was left of the bridge's own voice: not a stop",
+                          words=stream.dismissed)
         if hit.fired and not self._fired:
             self._stop(bridge, hit.word, end_t, during=False, over_voice=stream.over_voice)
         self._fired = False
