@@ -9,6 +9,7 @@ PocketSphinx one. Nothing in the decision path is replaced.
 from __future__ import annotations
 
 import threading
+import time
 import tomllib
 from pathlib import Path
 
@@ -268,3 +269,31 @@ def test_a_spotter_stop_that_repeats_the_last_cue_is_not_said_again() -> None:
     bus.emit("command", "stop (spotter)", action="stop", origin="spotter")  # heard in the bridge's own cue
     feedback.close()  # plays what is queued
     assert [(c.tone, c.words) for _t, c, _s in feedback.played] == [("doing", "braking")]
+
+
+def test_a_first_chunk_held_up_does_not_set_the_microphone_clock_late() -> None:
+    """The microphone path maps each chunk to the time it was captured (what the deaf time and the echo
+    canceller's reference are judged by). A first chunk that arrives 0.3 s late (the thread was busy) must not
+    leave that error for the whole session: chunks never arrive before they are captured, so the earliest
+    arrival is the clock."""
+    from gcs_voice.audio.sources import paced_chunks
+
+    recording = bytes(2 * 3 * 16_000)  # 3 s of a quiet room
+    started: list[float] = []
+    captured: list[tuple[float, float]] = []  # (when the path says a chunk began, when it really did)
+
+    def chunks():
+        for n, chunk in enumerate(paced_chunks(recording, on_start=started.append)):
+            if n == 0:
+                time.sleep(0.3)  # held up: the first chunk reaches the path late
+            yield chunk
+
+    def deaf(from_t: float, to_t: float) -> bool:
+        captured.append(from_t)
+        return False
+
+    list(microphone_utterances(chunks=chunks(), deaf=deaf))
+    block_s = 512 / 16_000
+    errors = [t - (started[0] + i * block_s) for i, t in enumerate(captured)]
+    assert errors[0] > 0.2  # the first chunk alone says it was captured late
+    assert abs(errors[-1]) < 0.1, f"the last chunk's capture time is {errors[-1]:+.3f} s off"

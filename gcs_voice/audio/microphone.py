@@ -71,9 +71,16 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
 
     def gated() -> Iterator[AudioChunk]:
         for chunk in (microphone_chunks(device) if chunks is None else chunks):
+            # A chunk arrives once captured, never before, and late when this thread was busy: the clock is the
+            # earliest arrival seen (taken from the first chunk alone, a first chunk held up set it late for the
+            # whole session: the deaf time and the echo canceller's reference off by as much)
+            now = time.time()
             if not t0:
-                t0.append(time.time() - chunk.start_s)
-                captured_t0.append(time.time() - chunk.start_s - chunk.duration_s)
+                t0.append(now - chunk.start_s)
+                captured_t0.append(now - chunk.start_s - chunk.duration_s)
+            else:
+                t0[0] = min(t0[0], now - chunk.start_s)
+                captured_t0[0] = min(captured_t0[0], now - chunk.start_s - chunk.duration_s)
             if talk is not None and not talk.is_set():
                 chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             elif deaf is not None:
