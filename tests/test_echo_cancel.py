@@ -195,11 +195,12 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     a silent room (a faint, lone sound, -70 dBFS) sounded like "stay" to the spotter, which normalises the level
     away: the vehicle stopped after 24 of 44 such answers in a 30-minute session (tools.bench_feedback_echo).
     Here, through the live path (the session's canceller and its word on its own echo, as shipped): each answer is
-    one stretch the spotter hears over the bridge's voice, and at most one of ten stops the vehicle. Not none: where the answer falls within the microphone's blocks, which a busy
-    machine moves, still decides some (with none asked, this failed beside four busy processes about once in ten
-    runs). Nor is this where the rate is guarded: on this recording even session 23's settings (no comfort noise,
-    the usual threshold) and a canceller that learns nothing stay under two; the rate is measured by
-    tools.bench_echo --alignments and tools.bench_feedback_echo, and test_fewer_stops_... guards the dismissal."""
+    one stretch the spotter hears over the bridge's voice, and at most one of ten stops the vehicle. Not none:
+    where the answer falls within the microphone's blocks, which the machine's load moves, still decides some
+    (asked for none, it failed 3 times in 23 runs, idle and beside four busy processes). Nor is this where the
+    rate is guarded: on this recording even session 23's settings (no comfort noise, the usual threshold) and a
+    canceller that learns nothing stay under two; the rate is measured by tools.bench_echo --alignments and
+    tools.bench_feedback_echo, and test_fewer_stops_... guards the own-echo gate."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from tools.real_speech import load_recordings
