@@ -59,10 +59,19 @@ class EchoGate:
 
     def record(self, start_t: float, pcm: bytes) -> None:
         """The sound (16 kHz mono s16le) whose first sample left the player at ``start_t`` (a player's
-        ``started``): kept so that its echo can be taken out of the microphone."""
+        ``started``): kept so that its echo can be taken out of the microphone. The deaf time lasts until it has
+        ended plus the tail, counted from when it really started: a player's output latency (up to 0.2 s)
+        does not shorten the tail that was held for the room."""
+        end_t = start_t + pcm_seconds(pcm) + self.tail_s
         with self._lock:
             self._sounds = [s for s in self._sounds if s[0] + s[1].size / SAMPLE_RATE >= start_t - 60.0]
             self._sounds.append((start_t, np.frombuffer(pcm, "<i2").astype(np.float64)))
+            held = [i for i, (a, b) in enumerate(self._spans) if a <= start_t <= b]
+            if held:
+                a, b = self._spans[held[-1]]
+                self._spans[held[-1]] = (a, max(b, end_t))
+            else:
+                self._spans.append((start_t, end_t))
 
     def played(self, from_t: float, n: int) -> np.ndarray:
         """What the bridge played during the ``n`` samples from UNIX time ``from_t``, sample for sample

@@ -25,11 +25,12 @@ import queue
 import threading
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from gcs_voice.asr.base import Abandoned, BufferedStream
+from gcs_voice.audio.microphone import HeardUtterance
 from gcs_voice.audio.sources import pcm_to_chunks
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.session.bridge import PAUSE, RESUME, STAY, Bridge, Request
@@ -208,11 +209,12 @@ class VoicePipeline:
         self._speculated = (pcm, recognition)
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
-             recorded: bool = False, bridge: Bridge | None = None) -> Decision:
+             recorded: bool = False, bridge: Bridge | None = None, began_deaf: bool = False) -> Decision:
         """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set).
 
         With a ``bridge``, recorded audio also goes through the stop spotter as it is fed (the
-        microphone's is spotted by the ear thread as it is spoken).
+        microphone's is spotted by the ear thread as it is spoken). An utterance that ``began_deaf`` (the pilot
+        was speaking as the bridge's own sound ended: only its end was heard) is acted on only if it is a stop.
         """
         spot = self.stop_path if recorded and bridge is not None else None
         speculated, self._speculated = self._speculated, None
@@ -254,6 +256,10 @@ class VoicePipeline:
                       utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1),
                       speculated=early is not None)
         decision = self.matcher.decide(recognition, self.dictionaries)
+        if began_deaf and decision.accepted and decision.action != "stop":
+            decision = replace(decision, action=None, amount=None,
+                               reason=f"heard only the end of it ('{decision.text}'): it began while the bridge was "
+                                      "speaking; say it again")
         late_s = time.time() - end_t
         if late_s > LATE_S:
             self.bus.emit("late", f"late: decided {late_s:.1f} s after the utterance ended "
@@ -267,10 +273,11 @@ class VoicePipeline:
         return decision
 
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
-               recorded: bool = False, more_waiting: Callable[[], bool] | None = None) -> Request | None:
+               recorded: bool = False, more_waiting: Callable[[], bool] | None = None,
+               began_deaf: bool = False) -> Request | None:
         """Hear one utterance and hand an accepted action to the bridge (None when rejected: then the paused
         motion resumes, unless ``more_waiting`` says another utterance waits for its decision)."""
-        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge)
+        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge, began_deaf)
         if not decision.accepted:
             self.settle_pause(bridge, decision, more_waiting is not None and more_waiting())
             return None
@@ -324,9 +331,9 @@ class _Tentative:
     pcm: bytes
 
 
-def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]],
+def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[HeardUtterance | tuple[bytes, float]],
                    spotted_while_spoken: bool = False, tentatives: TentativeUtterances | None = None) -> None:
-    """Serve utterances from a live source (PCM, end time) until the bridge finishes.
+    """Serve utterances from a live source (PCM, end time[, whether it began deaf]) until the bridge finishes.
 
     The source is read in its own thread (``ear``) and each utterance queued for the recogniser, so
     the next one is heard (and a stop in it spotted) while the recogniser is busy. Unless the source
@@ -335,7 +342,7 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
     to end is recognised while its closing silence runs out (when nothing else waits), and its
     decision is taken at once if it does end that way.
     """
-    heard: queue.Queue[tuple[bytes, float] | _Tentative | BaseException | None] = queue.Queue()
+    heard: queue.Queue[tuple[bytes, float, bool] | _Tentative | BaseException | None] = queue.Queue()
     if tentatives is not None:
         def tentative(pcm: bytes) -> None:
             pipeline.pause_motion(bridge)  # the speech has ended (the first sign of it): hold until decided
@@ -345,14 +352,16 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
 
     def ear() -> None:
         try:
-            for pcm, end_t in utterances:
+            for utterance in utterances:
+                pcm, end_t = utterance[0], utterance[1]
+                began_deaf = isinstance(utterance, HeardUtterance) and utterance.began_deaf
                 if bridge.finished:
                     break
                 pipeline.pause_motion(bridge, end_t)  # (already paused by its tentative one, if any)
                 if pipeline.stop_path is not None and not spotted_while_spoken:
                     pipeline.stop_path.feed(bridge, pcm)
                     pipeline.stop_path.end(bridge, end_t)
-                heard.put((pcm, end_t))
+                heard.put((pcm, end_t, began_deaf))
         except BaseException as exc:  # noqa: BLE001 - handed to the voice thread, which ends the session
             heard.put(exc)
         finally:
@@ -369,11 +378,12 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             if heard.empty():  # a real utterance waiting comes first; a stale guess is skipped
                 pipeline.speculate(item.pcm, stale=lambda pcm=item.pcm: _superseded(heard, pcm))
             continue
-        pcm, end_t = item
-        pipeline.submit(bridge, pcm, "microphone", end_t, more_waiting=lambda: not heard.empty())
+        pcm, end_t, began_deaf = item
+        pipeline.submit(bridge, pcm, "microphone", end_t, more_waiting=lambda: not heard.empty(),
+                        began_deaf=began_deaf)
 
 
-def run_recording(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[tuple[bytes, float]],
+def run_recording(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[HeardUtterance | tuple[bytes, float]],
                   spotted_while_spoken: bool = False, tentatives: TentativeUtterances | None = None,
                   hold_s: float = 3.0) -> None:
     """``run_microphone`` on a source that ends (a recording heard as a microphone), then hold and end."""
