@@ -10,10 +10,11 @@ be in the microphone, the segmenter is fed silence, so that sound never becomes 
 speech listener (the stop spotter) is fed the microphone itself, less the echo of what the bridge played
 (``clean``, a ``gcs_voice.audio.echo_cancel.PlayedEcho``), so a "stop" said over the bridge's voice still
 stops. That listener hears one stream at a time: the segmenter's speech, or the deaf time's audio. When the
-pilot is still speaking as the deaf time ends, the deaf time's stream goes on until the segmenter's utterance ends
-(the stop spotter hears the word whole, not its start over the bridge and its end alone), and that utterance is
-marked: the segmenter heard only its end, so the session does not act on it (a "turn left" begun over the
-bridge's voice must not fly "left").
+pilot is still speaking as the deaf time ends (a reply begun in its tail, or words said over the bridge's voice),
+the word is taken whole from 0.3 s before the edge, where the bridge's sound has ended: the stop spotter hears it
+as a stream of its own and the segmenter's utterance is that whole word, not its start and end apart. A word begun
+over the bridge's sound itself is still cut; its utterance is marked, and the session does not act on it (a
+"turn left" begun over the bridge's voice must not fly "left").
 """
 
 from __future__ import annotations
@@ -31,6 +32,7 @@ from gcs_voice.audio.sources import MICROPHONE_BLOCK_S
 
 if TYPE_CHECKING:
     from gcs_voice.audio.sources import AudioChunk
+    from gcs_voice.audio.vad import Utterance
 
 __all__ = ["microphone_utterances", "check_microphone", "HeardUtterance"]
 
@@ -57,13 +59,15 @@ EDGE_S = 0.064
 #: blocks of the last ``ROOM_S``): speech under way, not the room
 UNDER_WAY_DB = 9.0
 ROOM_S = 3.0
-#: the utterance is marked as begun deaf when those blocks were within this of its loudest block after the edge:
-#: its voice, not the breath or the room before a word said just after the edge
-MARK_DB = 12.0
+#: a word carried across the edge is marked as begun over the bridge's own sound when its first EDGE_S (from
+#: LOOKBACK_S before the edge, less the bridge's echo) was this far above the quiet: the room before the bridge
+#: spoke, or the quietest the microphone less the echo was while it spoke, whichever is louder (chosen on the dev
+#: speakers by python -m tools.bench_deaf_edge)
+MARK_ABOVE_DB = 9.0
 #: speech under way at the edge that the segmenter has not found within this long is let go
 CARRY_LIMIT_S = 1.0
-#: the stream that carries a word said across the edge starts this long before it (the end of the deaf time is
-#: the tail after the bridge's sound: the speaker's latency and the room)
+#: the stream that carries a word said across the edge starts this long before it (the deaf time ends the tail
+#: after the bridge's sound really ended, EchoGate.record: what the room returned of it, 0.4 s)
 LOOKBACK_S = 0.3
 
 
@@ -73,7 +77,7 @@ class HeardUtterance(NamedTuple):
     pcm: bytes
     #: UNIX time its speech ended
     end_t: float
-    #: it was under way when the microphone stopped being deaf to the bridge's own sound: only its end is here
+    #: it began over the bridge's own sound (the microphone was deaf to it): only its end is here
     began_deaf: bool = False
 
 
@@ -86,16 +90,18 @@ class _Ear:
     """Which listener hears the microphone, block by block, when it has a deaf time (see the module's docstring).
 
     A word said across the end of the deaf time is not cut in two. When the pilot is speaking as the microphone stops
-    being deaf (a block of the first ``EDGE_S`` well above the room before the bridge spoke), one stream carries the
-    word until the segmenter's utterance ends, and that utterance is marked (``began_deaf``: the segmenter has only
-    its end). ``carry`` says which stream: ``"lookback"``, a stream of its own for the listener that starts
-    ``LOOKBACK_S`` before the edge, the microphone as it is (the deaf time's stream ends at the edge, as it did
-    before); ``"over_voice"``, the deaf time's stream goes on; ``"none"``, none (the word is cut, as before)."""
+    being deaf (a block of the first ``EDGE_S`` well above the room before the bridge spoke), the word is taken from
+    ``LOOKBACK_S`` before the edge (the deaf time's tail, after the bridge's sound ended), the microphone as it is, to
+    the end of the segmenter's utterance: the stop spotter hears it as a stream of its own (the deaf time's stream is
+    still decided on its own, as before), and the segmenter's utterance is that whole word (``whole``). When even
+    that began mid-word (its first ``EDGE_S``, less the bridge's echo, ``MARK_ABOVE_DB`` above the quiet: the pilot
+    began over the bridge's own sound), the utterance is marked (``began_deaf``): only its end is there. ``carry="none"``
+    is the way before (the word cut in two, nothing marked), for the benchmark."""
 
     def __init__(self, on_speech: Callable[[bytes | None], None], over_voice: Callable[[bytes | None], None],
                  clean: Callable[[float, bytes], bytes] | None, block_s: float, carry: str = "lookback") -> None:
-        if carry not in ("lookback", "over_voice", "none"):
-            raise ValueError(f"carry must be lookback, over_voice or none, not {carry!r}")
+        if carry not in ("lookback", "none"):
+            raise ValueError(f"carry must be lookback or none, not {carry!r}")
         self.on_speech = on_speech
         self.over_voice = over_voice
         self.clean = clean
@@ -105,19 +111,23 @@ class _Ear:
         self.state = "open"  # open | edge (judging the first blocks after the deaf time) | carry
         self.edge_t = 0.0
         self.edge_loud = False
-        self.edge_db = -30.0  # the loudest block of the first EDGE_S after the edge
-        self.peak_db = -30.0  # the loudest block since the edge
         self.floor_db = -30.0
         self.room: deque[float] = deque(maxlen=max(1, round(ROOM_S / block_s)))
         self.recent: deque[bytes] = deque(maxlen=max(1, round(LOOKBACK_S / block_s)))  # the raw deaf audio
+        self.recent_levels: deque[float] = deque(maxlen=self.recent.maxlen)  # ... its levels less the bridge's echo
+        self.deaf_levels: list[float] = []  # the levels of the microphone less the bridge's echo, this deaf time
+        self.lookback_rise_db = 0.0  # how far the start of the word carried was above the quiet
         self.edge: list[bytes] = []  # the blocks since the edge, while it is judged
         self.held: list[bytes | None] = []  # the segmenter's speech while the edge is judged
-        self.carried: Callable[[bytes | None], None] | None = None  # the stream that carries the word
+        self.word: list[bytes] = []  # the word carried across the edge, from LOOKBACK_S before it
+        self.lookback_bytes = 0  # how much of ``word`` is from before the edge
         self.segment_began: str | None = None  # the state the segmenter's utterance in progress began in
-        self.began_deaf = False  # the utterance the segmenter yields next began deaf
-        #: for the utterance the segmenter yields next, when it began at an edge: its loudest block after the edge
-        #: less the loudest of the edge's, dB (None otherwise; what MARK_DB is judged on)
+        #: for the utterance the segmenter yields next: whether it began at an edge, and then the whole word (from
+        #: ``LOOKBACK_S`` before the edge, on), how much of it is from before the edge, and the edge's capture time
+        self.whole: tuple[bytes, int, float] | None = None
+        #: ... how far its first EDGE_S was above the quiet, dB (what MARK_ABOVE_DB is judged on)
         self.edge_gap_db: float | None = None
+        self.began_deaf = False  # ... it began over the bridge's own sound: only its end is here
 
     def chunk(self, start_t: float, deaf: bool, pcm: bytes) -> bool:
         """One block captured at ``start_t``; whether the segmenter is to hear it (else silence)."""
@@ -126,54 +136,64 @@ class _Ear:
             if not was:
                 if self.state == "open":  # the segmenter's speech so far is decided on its own
                     self.on_speech(None)
-                elif self.carried is not None and self.carried is not self.over_voice:
-                    self.carried(None)
+                elif self.state == "carry" and self.word:
+                    self.on_speech(None)
                 self.floor_db = float(np.percentile(self.room, 20)) if self.room else -30.0
-                self.state, self.held, self.carried = "open", [], None
+                self.state, self.held, self.word = "open", [], []
                 self.recent.clear()
+                self.recent_levels.clear()
+                self.deaf_levels = []
+            cleaned = self.clean(start_t, pcm) if self.clean is not None else pcm
             self.recent.append(pcm)
-            self.over_voice(self.clean(start_t, pcm) if self.clean is not None else pcm)
+            self.recent_levels.append(_level_db(cleaned))
+            self.deaf_levels.append(self.recent_levels[-1])
+            self.over_voice(cleaned)
             return False
         if was:  # the end of the deaf time: is the pilot speaking?
             self.state, self.edge_t, self.edge_loud, self.held, self.edge = "edge", start_t, False, [], []
-            self.edge_db = self.peak_db = -30.0
-        level = _level_db(pcm)
-        self.peak_db = max(self.peak_db, level)
         if self.state == "open":
-            self.room.append(level)
+            self.room.append(_level_db(pcm))
             return True
         if self.state == "edge":
             self.over_voice(pcm)  # as it is: the deaf time ends when nothing of the bridge's is left in the room
             self.edge.append(pcm)
-            self.edge_db = max(self.edge_db, level)
-            self.edge_loud = self.edge_loud or level >= self.floor_db + UNDER_WAY_DB
+            self.edge_loud = self.edge_loud or _level_db(pcm) >= self.floor_db + UNDER_WAY_DB
             if start_t + self.block_s >= self.edge_t + EDGE_S - 1e-6:
                 self._judge_edge()
         else:
-            if self.carried is not None:
-                self.carried(pcm)
+            if self.word:
+                self.word.append(pcm)
+                self.on_speech(pcm)
             if self.segment_began is None and start_t > self.edge_t + CARRY_LIMIT_S:
-                self._end_carry()  # the segmenter never found the speech: let the stream go
+                self._end_carry()  # the segmenter never found the speech: let the word go
         return True
 
     def _judge_edge(self) -> None:
-        if self.edge_loud and self.carry == "over_voice":
-            self.state, self.carried = "carry", self.over_voice
-            return
         self.over_voice(None)  # the deaf time's stream is decided on its own
         if self.edge_loud and self.carry == "lookback":
-            self.state, self.carried = "carry", self.on_speech
-            self.on_speech(b"".join([*self.recent, *self.edge]))
+            self.state = "carry"
+            self.word = [*self.recent, *self.edge]
+            self.lookback_bytes = sum(map(len, self.recent))
+            start = max(list(self.recent_levels)[:max(1, round(EDGE_S / self.block_s))], default=-30.0)
+            quiet = max(self.floor_db, float(np.percentile(self.deaf_levels, 10)) if self.deaf_levels else -30.0)
+            self.lookback_rise_db = start - quiet
+            self.on_speech(b"".join(self.word))
             return
-        self.state = "carry" if self.edge_loud else "open"  # "none": the word is cut, its end still marked
+        self.state = "open"
         for held in self.held:  # the segmenter's listener has its speech from its start
             self.on_speech(held)
         self.held = []
 
+    def carrying(self) -> tuple[bytes, int, float] | None:
+        """The word being carried across the edge so far (as ``whole``), while the segmenter's utterance of it goes on."""
+        if self.state == "carry" and self.word and self.segment_began in ("edge", "carry"):
+            return b"".join(self.word), self.lookback_bytes, self.edge_t
+        return None
+
     def _end_carry(self) -> None:
-        carried, self.carried, self.state = self.carried, None, "open"
-        if carried is not None:
-            carried(None)
+        if self.word:
+            self.on_speech(None)
+        self.state, self.word = "open", []
 
     def segmenter_speech(self, pcm: bytes | None) -> None:
         """The segmenter's listener: its utterance's audio, then None at its end."""
@@ -181,19 +201,20 @@ class _Ear:
             self.segment_began = self.state
         if pcm is None:
             began, self.segment_began = self.segment_began, None
-            at_edge = began in ("edge", "carry") and self.edge_loud
-            self.edge_gap_db = self.peak_db - self.edge_db if at_edge else None
-            self.began_deaf = self.edge_gap_db is not None and self.edge_gap_db <= MARK_DB
+            self.whole, self.edge_gap_db, self.began_deaf = None, None, False
+            if began in ("edge", "carry") and self.word and not self.deaf:
+                word = b"".join(self.word)
+                self.whole = (word, self.lookback_bytes, self.edge_t)
+                self.edge_gap_db = self.lookback_rise_db
+                self.began_deaf = self.edge_gap_db >= MARK_ABOVE_DB
         if self.deaf:
             return  # while deaf the listener has the microphone's own audio instead
         if self.state == "edge":
             self.held.append(pcm)
-        elif self.carried is not None:
+        elif self.state == "carry":
             if pcm is None:  # the word said across the edge has ended: so does its stream
                 self._end_carry()
         else:
-            if self.state == "carry" and pcm is None:
-                self.state = "open"
             self.on_speech(pcm)
 
 
@@ -247,6 +268,15 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
             yield chunk
 
     listen = on_speech if deaf is None else ear.segmenter_speech
-    tentative = (lambda utt: on_tentative(utt.pcm)) if on_tentative is not None else None
+
+    def whole(utterance: Utterance, carried: tuple[bytes, int, float] | None) -> bytes:
+        """The utterance, or when it began at the edge the whole word (from before the edge) to its end."""
+        if carried is None:
+            return utterance.pcm
+        word, before, edge_t = carried
+        after_s = utterance.end_s - (edge_t - captured_t0[0])
+        return word[:before + 2 * max(0, round(after_s * SAMPLE_RATE))]
+
+    tentative = ((lambda utt: on_tentative(whole(utt, ear.carrying()))) if on_tentative is not None else None)
     for utterance in segment_utterances(gated(), on_speech=listen, on_tentative=tentative):
-        yield HeardUtterance(utterance.pcm, t0[0] + utterance.end_s, ear.began_deaf)
+        yield HeardUtterance(whole(utterance, ear.whole), t0[0] + utterance.end_s, ear.began_deaf)
