@@ -260,8 +260,8 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
 def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
     """Where the cue starts within the microphone's blocks decides what the canceller leaves of it, and the spotter
     normalises the level away: the remains of "fence reached", 17 dB below the microphone, were "stay" for 8 of
-    these 100 cues. With the canceller's own-echo gate at 18 dB (off in sounds.toml: live, it also dismissed a
-    pilot's real stop), a word heard where all the canceller gave out stayed far below the microphone, where it
+    these 100 cues. With the canceller's own-echo gate at 18 dB (as shipped in sounds.toml since session 28), a word
+    heard where all the canceller gave out stayed far below the microphone, where it
     was loud, is dismissed: 5 are left (tools.bench_echo --alignments)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
