@@ -24,6 +24,7 @@ from gcs_voice.audio.sources import paced_chunks, read_wav
 from gcs_voice.audio.speaker import EchoGate, EchoRoom
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.feedback import load_sound_settings
+from tools.bench_deaf_edge import SpotterStreams
 from tools.bench_echo import room_response, voiced_dbfs
 from tools.bench_stream import voiced_level
 
@@ -87,26 +88,14 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
     room = EchoRoom(10 ** ((PILOT_DBFS - voiced_dbfs(np.frombuffer(cue, "<i2").astype(np.float64))) / 20), DELAY_S,
                     room_response(0.3, 6.0))
     gate = EchoGate(settings.tail_s)
-    streams: list[tuple[bool, float, list[bytes]]] = []  # (over the voice, recording time it starts, audio)
-    current: list[int | None] = [None]
-    where = [0.0]  # the recording time of the block being heard
+    heard_streams = SpotterStreams(block_s)
+    streams = heard_streams.streams
     started_at: list[float] = []
-
-    def listener(over_voice: bool):
-        def hear(pcm: bytes | None) -> None:  # as the session's StopPath: one stream at a time
-            if pcm is None:
-                current[0] = None
-                return
-            if current[0] is None or streams[current[0]][0] != over_voice:
-                streams.append((over_voice, where[0] + block_s - len(pcm) / 2 / SAMPLE_RATE, []))
-                current[0] = len(streams) - 1
-            streams[current[0]][2].append(pcm)
-        return hear
 
     def chunks():
         pending = [p[0] for p in plan]
         for chunk in room.hear(paced_chunks(recording, on_start=lambda t: (started_at.append(t), room.start(t)))):
-            where[0] = chunk.start_s
+            heard_streams.where = chunk.start_s
             if pending and chunk.start_s >= pending[0] - 1e-6:
                 pending.pop(0)
 
@@ -118,7 +107,8 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
             yield chunk
 
     clean = PlayedEcho(gate, EchoCanceller(**settings.echo_cancel))
-    utterances = list(microphone_utterances(on_speech=listener(False), on_speech_over_voice=listener(True),
+    utterances = list(microphone_utterances(on_speech=heard_streams.listener(False),
+                                            on_speech_over_voice=heard_streams.listener(True),
                                             chunks=chunks(), deaf=gate.deaf, clean=clean))
     assert len(room.played) == 3
     said = np.frombuffer(recording, "<i2").astype(np.float64)

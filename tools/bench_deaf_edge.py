@@ -27,6 +27,7 @@ import argparse
 import sys
 import time
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -75,6 +76,29 @@ class Trial:
     remains_fired: bool
     #: what the decision did with the segmenter's utterances of the word: "right", "wrong", "none" (or "" undecided)
     decided: str = ""
+
+
+class SpotterStreams:
+    """What the stop spotter is given, as the session's StopPath takes it: one stream at a time, a new one when the
+    other listener speaks or after an end; each kept as (over the bridge's voice, recording time it starts, audio).
+    Set ``where`` to the recording time of the block being heard."""
+
+    def __init__(self, block_s: float) -> None:
+        self.block_s = block_s
+        self.where = 0.0
+        self.streams: list[tuple[bool, float, list[bytes]]] = []
+        self._current: int | None = None
+
+    def listener(self, over_voice: bool) -> Callable[[bytes | None], None]:
+        def hear(pcm: bytes | None) -> None:
+            if pcm is None:  # the end of the stream, whichever it is
+                self._current = None
+                return
+            if self._current is None or self.streams[self._current][0] != over_voice:
+                self.streams.append((over_voice, self.where + self.block_s - len(pcm) / 2 / SAMPLE_RATE, []))
+                self._current = len(self.streams) - 1
+            self.streams[self._current][2].append(pcm)
+        return hear
 
 
 def _cue(tone_name: str, words: str) -> np.ndarray:
@@ -126,26 +150,13 @@ def run_trial(word: np.ndarray, voiced: tuple[float, float], offset_s: float, cu
         mic += noise[:n]
     pcm = np.clip(np.round(mic), -32768, 32767).astype("<i2").tobytes()
     clean = PlayedEcho(gate, EchoCanceller(**settings.echo_cancel))
-    streams: list[tuple[bool, float, list[bytes]]] = []  # (over the voice, start s, audio), as StopPath has them
-    current: list[int | None] = [None]
-    where = [0.0]  # the recording time of the block being heard
+    heard_streams = SpotterStreams(block)
 
-    def listener(over_voice: bool):
-        def hear(pcm_: bytes | None) -> None:
-            if pcm_ is None:  # as StopPath: the end of the stream, whichever it is
-                current[0] = None
-                return
-            if current[0] is None or streams[current[0]][0] != over_voice:  # a change of stream ends the one before
-                streams.append((over_voice, where[0] + block - len(pcm_) / 2 / SAMPLE_RATE, []))
-                current[0] = len(streams) - 1
-            streams[current[0]][2].append(pcm_)
-        return hear
-
-    ear = _Ear(listener(False), listener(True), clean, block, carry=mode)
+    ear = _Ear(heard_streams.listener(False), heard_streams.listener(True), clean, block, carry=mode)
 
     def chunks():
         for chunk in pcm_to_chunks(pcm, block):
-            where[0] = chunk.start_s
+            heard_streams.where = chunk.start_s
             deaf = gate.deaf(chunk.start_s, chunk.start_s + chunk.duration_s)
             yield chunk if ear.chunk(chunk.start_s, deaf, chunk.pcm) else AudioChunk(bytes(len(chunk.pcm)),
                                                                                          chunk.start_s)
@@ -158,11 +169,10 @@ def run_trial(word: np.ndarray, voiced: tuple[float, float], offset_s: float, cu
             gap = ear.edge_gap_db if gap is None else gap
             pcm_ = utt.pcm
             if ear.whole is not None:  # as microphone_utterances does: the whole word, to the utterance's end
-                whole, before, edge_t = ear.whole
-                pcm_ = whole[:before + 2 * max(0, round((utt.end_s - edge_t) * SAMPLE_RATE))]
+                pcm_ = ear.word_to(ear.whole, utt.end_s)
             heard.append((pcm_, ear.began_deaf))
     stopped = False
-    for over_voice, start_s, parts in streams:
+    for over_voice, start_s, parts in heard_streams.streams:
         audio = b"".join(parts)
         end_s = start_s + len(audio) / 2 / SAMPLE_RATE
         if start_s < word_span[1] + 0.1 and end_s > word_span[0] - 0.1 and spotter.spot(audio, over_voice).fired:

@@ -114,7 +114,6 @@ class _Ear:
         self.floor_db = -30.0
         self.room: deque[float] = deque(maxlen=max(1, round(ROOM_S / block_s)))
         self.recent: deque[bytes] = deque(maxlen=max(1, round(LOOKBACK_S / block_s)))  # the raw deaf audio
-        self.recent_levels: deque[float] = deque(maxlen=self.recent.maxlen)  # ... its levels less the bridge's echo
         self.deaf_levels: list[float] = []  # the levels of the microphone less the bridge's echo, this deaf time
         self.lookback_rise_db = 0.0  # how far the start of the word carried was above the quiet
         self.edge: list[bytes] = []  # the blocks since the edge, while it is judged
@@ -141,12 +140,10 @@ class _Ear:
                 self.floor_db = float(np.percentile(self.room, 20)) if self.room else -30.0
                 self.state, self.held, self.word = "open", [], []
                 self.recent.clear()
-                self.recent_levels.clear()
                 self.deaf_levels = []
             cleaned = self.clean(start_t, pcm) if self.clean is not None else pcm
             self.recent.append(pcm)
-            self.recent_levels.append(_level_db(cleaned))
-            self.deaf_levels.append(self.recent_levels[-1])
+            self.deaf_levels.append(_level_db(cleaned))
             self.over_voice(cleaned)
             return False
         if was:  # the end of the deaf time: is the pilot speaking?
@@ -174,7 +171,8 @@ class _Ear:
             self.state = "carry"
             self.word = [*self.recent, *self.edge]
             self.lookback_bytes = sum(map(len, self.recent))
-            start = max(list(self.recent_levels)[:max(1, round(EDGE_S / self.block_s))], default=-30.0)
+            lookback_levels = self.deaf_levels[len(self.deaf_levels) - len(self.recent):]  # ``recent``, less the echo
+            start = max(lookback_levels[:max(1, round(EDGE_S / self.block_s))], default=-30.0)
             quiet = max(self.floor_db, float(np.percentile(self.deaf_levels, 10)) if self.deaf_levels else -30.0)
             self.lookback_rise_db = start - quiet
             self.on_speech(b"".join(self.word))
@@ -183,6 +181,12 @@ class _Ear:
         for held in self.held:  # the segmenter's listener has its speech from its start
             self.on_speech(held)
         self.held = []
+
+    @staticmethod
+    def word_to(carried: tuple[bytes, int, float], end_t: float) -> bytes:
+        """A carried word (``whole`` or ``carrying``) up to ``end_t``, on the clock ``chunk`` was given."""
+        word, before, edge_t = carried
+        return word[:before + 2 * max(0, round((end_t - edge_t) * SAMPLE_RATE))]
 
     def carrying(self) -> tuple[bytes, int, float] | None:
         """The word being carried across the edge so far (as ``whole``), while the segmenter's utterance of it goes on."""
@@ -271,11 +275,7 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
 
     def whole(utterance: Utterance, carried: tuple[bytes, int, float] | None) -> bytes:
         """The utterance, or when it began at the edge the whole word (from before the edge) to its end."""
-        if carried is None:
-            return utterance.pcm
-        word, before, edge_t = carried
-        after_s = utterance.end_s - (edge_t - captured_t0[0])
-        return word[:before + 2 * max(0, round(after_s * SAMPLE_RATE))]
+        return utterance.pcm if carried is None else ear.word_to(carried, captured_t0[0] + utterance.end_s)
 
     tentative = ((lambda utt: on_tentative(whole(utt, ear.carrying()))) if on_tentative is not None else None)
     for utterance in segment_utterances(gated(), on_speech=listen, on_tentative=tentative):
