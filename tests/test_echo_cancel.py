@@ -62,16 +62,32 @@ def test_where_nothing_was_played_the_microphone_is_untouched() -> None:
     assert np.array_equal(out, mic)
 
 
-def test_it_learns_the_room_and_takes_most_of_the_bridge_voice_away() -> None:
-    """A session's cues teach the filter the room: by the fourth, the echo is 15 dB down (a spotter hears a
-    pilot as loud as the bridge as if the bridge were 15 dB quieter)."""
-    canceller = EchoCanceller(**load_sound_settings().echo_cancel)
+def _erle_per_cue(settings: dict) -> list[float]:
+    """How far (dB) one canceller takes down each of a session's first four cues."""
+    canceller = EchoCanceller(**settings)
     erle = []
     for words in ("going left", "going forward, turning right", "refused, not armed", "going back"):
         mic, out = _heard(canceller, _cue(words) * 0.5)
         erle.append(10 * np.log10(np.sum(mic[:out.size] ** 2) / np.sum(out ** 2)))
-    assert erle[-1] > 15.0, f"echo only {erle[-1]:.1f} dB down by the fourth cue ({erle})"
-    assert erle[0] < erle[-1] - 5.0, erle  # it learned, not a fixed gain
+    return erle
+
+
+def test_it_learns_the_room_and_takes_most_of_the_bridge_voice_away() -> None:
+    """A session's cues teach the filter the room: by the fourth, the echo is 15 dB down (a spotter hears a
+    pilot as loud as the bridge as if the bridge were 15 dB quieter). The filter alone (no assumed echo while it
+    learns) shows that it learned: its first cue is far less taken down than its fourth."""
+    learning = _erle_per_cue({**load_sound_settings().echo_cancel, "learn_s": 0.0})
+    assert learning[-1] > 15.0, f"echo only {learning[-1]:.1f} dB down by the fourth cue ({learning})"
+    assert learning[0] < learning[-1] - 5.0, learning  # it learned, not a fixed gain
+
+
+def test_the_first_cue_of_a_session_is_taken_down_too() -> None:
+    """A fresh filter cancels little of the first cue (the test above); while it learns, the shipped canceller
+    assumes the echo is as loud as the room has returned the bridge's sound so far, and takes the first cue down
+    as far as the fourth (before: about 9 dB less: the vehicle stopped for nothing on a live session's first
+    "going down", python -m tools.bench_feedback_echo, sessions 27 and 28)."""
+    shipped = _erle_per_cue(load_sound_settings().echo_cancel)
+    assert shipped[0] > 15.0 and shipped[0] > shipped[-1] - 5.0, shipped
 
 
 def test_the_pilot_talking_over_the_bridge_is_kept(real_speech_dir: Path) -> None:
@@ -184,9 +200,10 @@ def test_the_microphone_path_gives_the_spotter_the_microphone_less_the_echo() ->
         echo = np.convolve(np.frombuffer(pcm, "<i2").astype(np.float64) * 0.5, room_response(0.3, 6.0))
         fed_samples = np.frombuffer(b"".join(fed), "<i2").astype(np.float64)
         erle.append(float(10 * np.log10(np.sum(echo ** 2) / (np.sum(fed_samples ** 2) + 1e-9))))
-    # the raw microphone would give the spotter the whole echo (0 dB); the canceller learns the room: the third
-    # cue comes out about 11 dB down on an idle machine, 7.5 beside six busy processes on two cores
-    assert erle[-1] > 5.0 and erle[-1] > erle[0] + 3.0, f"echo left per cue, dB below the raw echo: {erle}"
+    # the raw microphone would give the spotter the whole echo (0 dB); the first cue is taken down while the
+    # filter learns (learn_s), the third by what it learned: about 11 dB on an idle machine, 7.5 beside six busy
+    # processes on two cores, the filter alone
+    assert min(erle) > 5.0, f"echo left per cue, dB below the raw echo: {erle}"
 
 
 def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_dir: Path) -> None:
@@ -268,13 +285,35 @@ def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
     from tools.bench_echo import spotted_remains
 
     settings = load_sound_settings()
-    gated = {**settings.echo_cancel, "residual_gate_db": 18.0}
+    # the gate alone: without the post-filter's worst case while the canceller learns, which takes these cues down
+    # on the first two plays of each session (test_the_first_cue_of_a_session_is_taken_down_too)
+    gated = {**settings.echo_cancel, "residual_gate_db": 18.0, "learn_s": 0.0}
     spotter = load_stop_spotter(["en"])
     cue = _cue("fence reached")
     heard, dismissed = (spotted_remains(cue, gated, spotter, trials=25, seed=2, dismiss=d, tail_s=settings.tail_s)
                         for d in (False, True))
     assert len(heard) >= 4, f"the remains fired {len(heard)} stops: the test would prove nothing"
     assert len(dismissed) < len(heard), f"{len(dismissed)} stops fired on the remains, {len(heard)} before"
+
+
+def test_the_first_going_down_of_a_session_stops_nothing() -> None:
+    """The live failure of sessions 27 and 28: the session's first "going down", heard through a canceller that had
+    not yet learned the room, stopped the vehicle ("hold"). In 30 fresh sessions, the cue anywhere in the
+    microphone's blocks: 4 stops with the filter alone, none as shipped (tools.bench_echo.spotted_remains)."""
+    pytest.importorskip("pocketsphinx")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from tools.bench_echo import spotted_remains
+
+    settings = load_sound_settings()
+    spotter = load_stop_spotter(["en"])
+    cue = _cue("going down")
+
+    def fired(learn_s: float) -> list:
+        return spotted_remains(cue, {**settings.echo_cancel, "learn_s": learn_s}, spotter, trials=30, seed=1,
+                               tail_s=settings.tail_s, plays=1)
+
+    assert len(fired(0.0)) >= 2, "a fresh filter alone fired no stop: the test would prove nothing"
+    assert fired(settings.echo_cancel["learn_s"]) == []
 
 
 def test_a_live_session_answers_stop_nothing() -> None:

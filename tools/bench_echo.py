@@ -63,9 +63,9 @@ class Cancelled:
 
 
 def spotted_remains(cue: np.ndarray, canceller_settings: dict, spotter: StopSpotter, trials: int, seed: int,
-                    dismiss: bool = True, delay_s: float = 0.06, tail_s: float = 0.4
+                    dismiss: bool = True, delay_s: float = 0.06, tail_s: float = 0.4, plays: int = 4
                     ) -> list[tuple[int, int, int, str]]:
-    """The bridge's ``cue`` (float samples) played 4 times into a silent room, at a pilot's level (-26 dBFS
+    """The bridge's ``cue`` (float samples) played ``plays`` times into a silent room, at a pilot's level (-26 dBFS
     voiced), ``delay_s`` late on the direct path, its first sample anywhere in a microphone block and the
     player's clock up to 10 ms off (as a busy machine leaves them), one canceller per session; the stop spotter
     over the bridge's voice fed chunk by chunk as the session feeds it (``dismiss``: with the canceller's word
@@ -84,7 +84,7 @@ def spotted_remains(cue: np.ndarray, canceller_settings: dict, spotter: StopSpot
         reference[phase:phase + cue.size] = cue
         mic[phase + delay + late:phase + delay + late + cue.size] = echo
         mic = np.trunc(mic)  # what the sound card gives: 16-bit samples
-        for k in range(4):
+        for k in range(plays):
             canceller.drop_pending()  # a new stretch of deaf time
             stream = spotter.start_stream(True, canceller.only_remains if dismiss else None)
             for i in range(0, n, block):  # chunk by chunk, as the microphone gives them
@@ -265,12 +265,15 @@ def main(argv: list[str] | None = None) -> int:
         aligned = [f"The same cues in {args.alignments} sessions of 4 plays each, the cue's first sample anywhere in "
                    "the microphone's 32 ms block and the player's clock up to 10 ms off (as a busy machine leaves "
                    "them), the direct path 60 ms late at -26 dBFS voiced, chunk by chunk as a session feeds the "
-                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays.",
+                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays (first: of the "
+                   "sessions' first plays, the canceller cold).",
                    "", "| cue | " + " | ".join(heads) + " |", "| --- | " + " | ".join("---" for _ in heads) + " |"]
         for said in args.alignment_cues.split(";"):
-            counts = [len(spotted_remains(cue(said), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s))
-                      for over in over_voice for c in settings for d in (False, True)]
-            aligned.append(f"| {said} | " + " | ".join(f"{n}/{4 * args.alignments}" for n in counts) + " |")
+            fired = [spotted_remains(cue(said), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s)
+                     for over in over_voice for c in settings for d in (False, True)]
+            aligned.append(f"| {said} | " + " | ".join(
+                f"{len(f)}/{4 * args.alignments} (first {sum(k == 0 for _t, k, _p, _w in f)}/{args.alignments})"
+                for f in fired) + " |")
             print(aligned[-1], flush=True)
         aligned.append("")
     false_labels = [named(label, t) for t in strict for label in

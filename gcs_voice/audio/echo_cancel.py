@@ -14,6 +14,13 @@ double-talk"): it learns in proportion to how much of what is left is echo, so t
 bridge (double talk) does not teach it to cancel the pilot. It keeps what it learned between cues: the room
 does not change between two sentences of the bridge. Where nothing was played it returns the microphone
 as it is.
+
+A fresh filter knows nothing of the room, and cancels next to nothing of the bridge's first words: what the
+spotter heard of the session's first "going down" was the bridge's own voice, and it stopped the vehicle
+(python -m tools.bench_feedback_echo, sessions 27 and 28, both 28 s in). Until it has heard ``learn_s`` of its
+own sound, the post-filter therefore takes down every bin the bridge's sound could reach: it assumes the room
+returns what was played in the last ``length_s`` at the loudness it has returned it so far (the microphone's
+power over the reference's), as echo cancellers do while they converge.
 """
 
 from __future__ import annotations
@@ -36,13 +43,14 @@ class EchoCanceller:
     power added to each bin's in the normalisation, ``comfort_noise_dbfs`` white noise under the output
     (relative to 16-bit full scale: samples in int16 units). Samples come in any chunk size; the output lags by
     less than one block. ``residual_gate_db``, ``window_s`` and ``loud_db``: see ``only_remains`` (None: it never
-    says so).
+    says so). ``learn_s``: the seconds of its own sound over which the post-filter assumes the worst of the echo
+    (0: never).
     """
 
     def __init__(self, rate: int = 16_000, block: int = 256, length_s: float = 0.256, step: float = 0.5,
                  min_step: float = 0.5, regularization: float = 0.1, suppress: float = 1.0,
                  comfort_noise_dbfs: float | None = None, residual_gate_db: float | None = None,
-                 window_s: float = 0.6, loud_db: float = 6.0) -> None:
+                 window_s: float = 0.6, loud_db: float = 6.0, learn_s: float = 0.0) -> None:
         if not (0 < step <= 1 and 0 <= min_step <= 1 and length_s > 0):
             raise ValueError(f"echo canceller: step {step} and min_step {min_step} must be in (0, 1], "
                              f"length_s {length_s} above 0")
@@ -59,6 +67,11 @@ class EchoCanceller:
         self.residual_gate_db = residual_gate_db
         self.window_s = window_s
         self.loud_db = loud_db
+        self.learn_s = learn_s
+        #: seconds of the bridge's own sound the filter has learned from
+        self.learned_s = 0.0
+        #: (microphone power, reference power) of the last blocks with the bridge's sound in them
+        self._coupling: list[tuple[float, float]] = []
         #: power per block of the microphone and of what was left of it, the last few seconds (newest last)
         self._levels: list[tuple[float, float]] = []
         bins = block + 1
@@ -153,7 +166,18 @@ class EchoCanceller:
             return error
         # What the filter leaves of our echo, taken down further where it still dominates (a post-filter, as
         # every echo canceller has): per bin, the share of what is left that the echo estimate says is ours
-        gain = np.clip(1.0 - self.suppress * self._echo_power / (self._error_power + 1e-9), 0.05, 1.0)
+        echo_power = self._echo_power
+        ref_power = float(np.mean(ref ** 2))
+        if ref_power > 1.0:  # above one 16-bit step: the bridge's sound, not the silence between its cues
+            self.learned_s += b / self.rate
+            self._coupling.append((float(np.mean(mic ** 2)), ref_power))
+            del self._coupling[:-200]
+        if self.learned_s < self.learn_s and self._coupling:
+            # Still learning: the echo is taken to be as loud, in every bin, as the loudest the bridge played there
+            # within the modelled path, times how loud the room has returned it so far (whatever the delay)
+            coupling = sum(m for m, _r in self._coupling) / sum(r for _m, r in self._coupling)
+            echo_power = np.maximum(echo_power, coupling * np.max(np.abs(self._x) ** 2, axis=0))
+        gain = np.clip(1.0 - self.suppress * echo_power / (self._error_power + 1e-9), 0.05, 1.0)
         return np.fft.irfft(e * gain)[b:]
 
 
