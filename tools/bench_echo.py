@@ -168,8 +168,8 @@ def main(argv: list[str] | None = None) -> int:
         return np.frombuffer(tone(s.tones["doing"], s.amplitude, s.fade_s) + Speech("en-us", s.speed_wpm).say(words),
                              "<i2").astype(np.float64)
 
-    words, earlier = "going forward, turning right", "going left"
-    voice, warm_voice = cue(words), cue(earlier)
+    words, earlier = "going forward, turning right", ["going left", "refused, not armed", "going back"]
+    voice, earlier_voices = cue(words), [cue(w) for w in earlier]
     response = room_response(args.rt60, args.drr_db) if args.rt60 > 0 else np.ones(1)
     delay = int(args.delay_ms / 1000 * RATE)
 
@@ -193,7 +193,7 @@ def main(argv: list[str] | None = None) -> int:
         return label if len(strict) == 1 else f"{label}, over-voice threshold {t:g}"
 
     per = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                                f" ({how})" for c in settings for how in ("cold", "warm")]
+                                f" ({how})" for c in settings for how in ("cold", "warm", "learned")]
     labels = [named(label, t) for t in strict for label in per]
     rows = []
     for level in levels:
@@ -209,12 +209,12 @@ def main(argv: list[str] | None = None) -> int:
             reference[:voice.size] = voice * gain
             outs = [mic]
             for c in settings:
-                for warm in (False, True):
+                for heard_before in (0, 1, len(earlier_voices)):
                     canceller = EchoCanceller(**c)
-                    if warm:  # the bridge said something earlier in the session: the filter has heard the room
-                        e = room(warm_voice * gain)
+                    for before in earlier_voices[:heard_before]:  # earlier cues of the session: the room heard
+                        e = room(before * gain)
                         m, r = np.zeros(e.size + RATE // 2), np.zeros(e.size + RATE // 2)
-                        m[:e.size], r[:warm_voice.size] = e, warm_voice * gain
+                        m[:e.size], r[:before.size] = e, before * gain
                         canceller.process(m, r)
                         canceller.drop_pending()  # the cue is a clip of its own, not the earlier one's continuation
                     outs.append(Cancelled(canceller, mic, reference))
@@ -282,7 +282,7 @@ def main(argv: list[str] | None = None) -> int:
     false_row = "| stops fired | " + " | ".join(f"{n}/{played}" for n in false_stops) + " |"
     print(false_row, flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
-    command = (f"python -m tools.bench_echo --levels {args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
+    command = (f"python -m tools.bench_echo --levels={args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
                + (f" --cancel '{args.cancel}'" if args.cancel else "")
                + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")
@@ -306,8 +306,10 @@ def main(argv: list[str] | None = None) -> int:
         "; a stop alone is judged at the usual one): the raw microphone, or the microphone less the echo "
         "canceller's estimate of the cue (gcs_voice/audio/echo_cancel.py, given what was played, with its comfort "
         "noise: the shipped [echo] of sounds.toml unless named), from a "
-        f"fresh filter (cold: the session's first cue) or one that has heard one earlier cue (\"{earlier}\", warm: "
-        "any later cue).",
+        f"fresh filter (cold: the session's first cue), one that has heard one earlier cue (warm: \"{earlier[0]}\", "
+        f"{earlier_voices[0].size / RATE:.1f} s), or {len(earlier)} (learned: \"" + '", "'.join(earlier) + "\", "
+        f"{sum(v.size for v in earlier_voices) / RATE:.1f} s; a canceller that has heard less than its learn_s of the "
+        "bridge's sound assumes the worst of the echo, gcs_voice/audio/echo_cancel.py).",
         "",
         "| the bridge's voice vs the pilot's | " + " | ".join(labels) + " |",
         "| --- | " + " | ".join("---" for _ in labels) + " |",
