@@ -51,6 +51,51 @@ def _clip(path: Path) -> tuple[np.ndarray, float, float]:
     return x, first / SAMPLE_RATE, last / SAMPLE_RATE
 
 
+def _listen_over_cues(recording: bytes, plays_s: list[float], cue: bytes, canceller: EchoCanceller, block_s: float
+                      ) -> tuple[list, SpotterStreams, float, EchoRoom]:
+    """The microphone path in real time on ``recording`` (PCM), the bridge playing ``cue`` into the echo room at each
+    of ``plays_s`` (recording time; the cue starts with the first block at or after it, and the gate is held once
+    that block has arrived, as Feedback does). (utterances, what the spotter was given, the recording's start on the
+    path's clock, the room)."""
+    settings = load_sound_settings()
+    cue_s = len(cue) / 2 / SAMPLE_RATE
+    room = EchoRoom(10 ** ((PILOT_DBFS - voiced_dbfs(np.frombuffer(cue, "<i2").astype(np.float64))) / 20), DELAY_S,
+                    room_response(0.3, 6.0))
+    gate = EchoGate(settings.tail_s)
+    heard_streams = SpotterStreams(block_s)
+    started_at: list[float] = []
+
+    def chunks():
+        pending = list(plays_s)
+        for chunk in room.hear(paced_chunks(recording, on_start=lambda t: (started_at.append(t), room.start(t)))):
+            heard_streams.where = chunk.start_s
+            if pending and chunk.start_s >= pending[0] - 1e-6:
+                pending.pop(0)
+
+                def play() -> None:
+                    gate.hold(time.time(), cue_s)  # as Feedback does
+                    room.play(cue, started=lambda t: gate.record(t, cue))
+
+                threading.Thread(target=play, daemon=True).start()
+            yield chunk
+
+    utterances = list(microphone_utterances(on_speech=heard_streams.listener(False),
+                                            on_speech_over_voice=heard_streams.listener(True),
+                                            chunks=chunks(), deaf=gate.deaf, clean=PlayedEcho(gate, canceller)))
+    return utterances, heard_streams, started_at[0] + block_s, room
+
+
+def _has_voice_at(said: np.ndarray, start_s: float, pcm: bytes, at_s: float) -> bool:
+    """Whether ``pcm`` (a stream starting at ``start_s`` of the recording ``said``) has what the pilot said at
+    ``at_s`` (not silence fed in its place)."""
+    x = np.frombuffer(pcm, "<i2").astype(np.float64)
+    i, j = int((at_s - start_s) * SAMPLE_RATE), int(at_s * SAMPLE_RATE)
+    n = int(0.05 * SAMPLE_RATE)
+    if i < 0 or i + n > x.size:
+        return False
+    return float(np.sum(x[i:i + n] ** 2)) > 0.25 * float(np.sum(said[j:j + n] ** 2))
+
+
 def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_dir: Path) -> None:
     """Three cues ("fence reached"), each answered by a real held-out word: two stops begun 0.15 s before the
     microphone stops being deaf (in the tail after the bridge's sound: a quick reply), and a spoken sentence begun
@@ -85,42 +130,14 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
     for offset, clip in placed:
         mic[offset:offset + clip.size] += clip
     recording = np.clip(mic, -32768, 32767).astype("<i2").tobytes()
-    room = EchoRoom(10 ** ((PILOT_DBFS - voiced_dbfs(np.frombuffer(cue, "<i2").astype(np.float64))) / 20), DELAY_S,
-                    room_response(0.3, 6.0))
-    gate = EchoGate(settings.tail_s)
-    heard_streams = SpotterStreams(block_s)
+    utterances, heard_streams, t0, room = _listen_over_cues(recording, [p[0] for p in plan], cue,
+                                                            EchoCanceller(**settings.echo_cancel), block_s)
     streams = heard_streams.streams
-    started_at: list[float] = []
-
-    def chunks():
-        pending = [p[0] for p in plan]
-        for chunk in room.hear(paced_chunks(recording, on_start=lambda t: (started_at.append(t), room.start(t)))):
-            heard_streams.where = chunk.start_s
-            if pending and chunk.start_s >= pending[0] - 1e-6:
-                pending.pop(0)
-
-                def play() -> None:
-                    gate.hold(time.time(), cue_s)  # as Feedback does
-                    room.play(cue, started=lambda t: gate.record(t, cue))
-
-                threading.Thread(target=play, daemon=True).start()
-            yield chunk
-
-    clean = PlayedEcho(gate, EchoCanceller(**settings.echo_cancel))
-    utterances = list(microphone_utterances(on_speech=heard_streams.listener(False),
-                                            on_speech_over_voice=heard_streams.listener(True),
-                                            chunks=chunks(), deaf=gate.deaf, clean=clean))
     assert len(room.played) == 3
     said = np.frombuffer(recording, "<i2").astype(np.float64)
 
     def has_voice_at(start_s: float, pcm: bytes, at_s: float) -> bool:
-        """Whether the stream has what the pilot said at ``at_s`` (not silence fed in its place)."""
-        x = np.frombuffer(pcm, "<i2").astype(np.float64)
-        i, j = int((at_s - start_s) * SAMPLE_RATE), int(at_s * SAMPLE_RATE)
-        n = int(0.05 * SAMPLE_RATE)
-        if i < 0 or i + n > x.size:
-            return False
-        return float(np.sum(x[i:i + n] ** 2)) > 0.25 * float(np.sum(said[j:j + n] ** 2))
+        return _has_voice_at(said, start_s, pcm, at_s)
 
     fired = 0
     for play_s, edge_s, voiced_start_s, voiced_end_s in plan[:2]:
@@ -134,7 +151,6 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
     # it is given is a word it can hear
     assert fired >= 1, "the spotter heard neither stop, each whole in a stream of its own"
     # the segmenter's utterances, in the recording's time (the path's clock starts once the first block arrived)
-    t0 = started_at[0] + block_s
     spans = [(u.end_t - t0 - len(u.pcm) / 2 / SAMPLE_RATE, u.end_t - t0, u) for u in utterances]
     for n, (play_s, edge_s, voiced_start_s, voiced_end_s) in enumerate(plan):
         mine = [u for start_s, end_s, u in spans if start_s < voiced_end_s and end_s > voiced_start_s]
@@ -180,44 +196,16 @@ def test_a_word_the_bridge_begins_to_speak_over_is_heard_whole_by_the_spotter(re
     for offset, clip in placed:
         mic[offset:offset + clip.size] += clip
     recording = np.clip(mic, -32768, 32767).astype("<i2").tobytes()
-    room = EchoRoom(10 ** ((PILOT_DBFS - voiced_dbfs(np.frombuffer(cue, "<i2").astype(np.float64))) / 20), DELAY_S,
-                    room_response(0.3, 6.0))
-    gate = EchoGate(settings.tail_s)
-    heard_streams = SpotterStreams(block_s)
-    started_at: list[float] = []
-
-    def chunks():
-        pending = [p[0] for p in plan]
-        for chunk in room.hear(paced_chunks(recording, on_start=lambda t: (started_at.append(t), room.start(t)))):
-            heard_streams.where = chunk.start_s
-            if pending and chunk.start_s >= pending[0] - 1e-6:
-                pending.pop(0)
-
-                def play() -> None:
-                    gate.hold(time.time(), cue_s)  # as Feedback does
-                    room.play(cue, started=lambda t: gate.record(t, cue))
-
-                threading.Thread(target=play, daemon=True).start()
-            yield chunk
-
     # the filter alone: while it learns (its first 2 s of the bridge's sound) the shipped canceller also takes down
     # the pilot's voice where the bridge's is loud, and whether the word is there is what this test asks
-    clean = PlayedEcho(gate, EchoCanceller(**{**settings.echo_cancel, "learn_s": 0.0}))
-    utterances = list(microphone_utterances(on_speech=heard_streams.listener(False),
-                                            on_speech_over_voice=heard_streams.listener(True),
-                                            chunks=chunks(), deaf=gate.deaf, clean=clean))
+    utterances, heard_streams, t0, room = _listen_over_cues(
+        recording, [p[0] for p in plan], cue, EchoCanceller(**{**settings.echo_cancel, "learn_s": 0.0}), block_s)
     assert len(room.played) == 3
     said = np.frombuffer(recording, "<i2").astype(np.float64)
 
     def has_voice_at(start_s: float, pcm: bytes, at_s: float) -> bool:
-        x = np.frombuffer(pcm, "<i2").astype(np.float64)
-        i, j = int((at_s - start_s) * SAMPLE_RATE), int(at_s * SAMPLE_RATE)
-        n = int(0.05 * SAMPLE_RATE)
-        if i < 0 or i + n > x.size:
-            return False
-        return float(np.sum(x[i:i + n] ** 2)) > 0.25 * float(np.sum(said[j:j + n] ** 2))
+        return _has_voice_at(said, start_s, pcm, at_s)
 
-    t0 = started_at[0] + block_s
     spans = [(u.end_t - t0 - len(u.pcm) / 2 / SAMPLE_RATE, u.end_t - t0, u) for u in utterances]
     for play_s, voiced_start_s, voiced_end_s in plan[:2]:
         whole = [pcm for over, start_s, parts in heard_streams.streams
