@@ -168,8 +168,7 @@ def test_a_word_the_bridge_begins_to_speak_over_is_heard_whole_by_the_spotter(re
     when it comes). Live (session 29, tools.bench_feedback_echo), such a stop was cut in two: its start ended the
     segmenter's stream, its end began the stream over the bridge's voice, and neither half was heard as a stop.
     Now the stream over the bridge's voice opens with the word so far: a stream the spotter hears has each stop's
-    voice whole. A spoken sentence the bridge begins to speak over 1 s in (the segmenter has found it by then): its
-    utterance, only its start, is marked."""
+    voice whole, whether or not the segmenter had found the word when the bridge began (0.2 s and 0.4 s in)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from tools.real_speech import load_recordings
@@ -178,14 +177,13 @@ def test_a_word_the_bridge_begins_to_speak_over_is_heard_whole_by_the_spotter(re
     spotter = load_stop_spotter(["en"])
     held_out = load_recordings(real_speech_dir, split="test")
     stops = [c for c in (_clip(r.path) for r in held_out if r.action == "stop")
-             if c[2] - c[1] > 0.35 and spotter.spot(np.clip(c[0], -32768, 32767).astype("<i2").tobytes()).fired][:2]
+             if c[2] - c[1] > 0.55 and spotter.spot(np.clip(c[0], -32768, 32767).astype("<i2").tobytes()).fired][:2]
     assert len(stops) == 2
-    sentence = _clip(next(r.path for r in held_out if r.kind == "sentence"))
     cue = _cue("warning", "floor reached")
     cue_s = len(cue) / 2 / SAMPLE_RATE
     block_s = 512 / SAMPLE_RATE
     plan, placed, at = [], [], 1.0
-    for (clip, voiced_start, voiced_end), lead_s in zip((*stops, sentence), (0.2, 0.2, 1.0)):
+    for (clip, voiced_start, voiced_end), lead_s in zip(stops, (0.2, 0.4)):
         play_s = np.ceil(at / block_s) * block_s
         deaf_s = play_s + block_s  # the gate is held once the block at play_s has arrived
         said_s = deaf_s - lead_s - voiced_start
@@ -198,26 +196,21 @@ def test_a_word_the_bridge_begins_to_speak_over_is_heard_whole_by_the_spotter(re
     recording = np.clip(mic, -32768, 32767).astype("<i2").tobytes()
     # the filter alone: while it learns (its first 2 s of the bridge's sound) the shipped canceller also takes down
     # the pilot's voice where the bridge's is loud, and whether the word is there is what this test asks
-    utterances, heard_streams, t0, room = _listen_over_cues(
+    _utterances, heard_streams, _t0, room = _listen_over_cues(
         recording, [p[0] for p in plan], cue, EchoCanceller(**{**settings.echo_cancel, "learn_s": 0.0}), block_s)
-    assert len(room.played) == 3
+    assert len(room.played) == 2
     said = np.frombuffer(recording, "<i2").astype(np.float64)
 
     def has_voice_at(start_s: float, pcm: bytes, at_s: float) -> bool:
         return _has_voice_at(said, start_s, pcm, at_s)
 
-    spans = [(u.end_t - t0 - len(u.pcm) / 2 / SAMPLE_RATE, u.end_t - t0, u) for u in utterances]
-    for play_s, voiced_start_s, voiced_end_s in plan[:2]:
+    for play_s, voiced_start_s, voiced_end_s in plan:
         whole = [pcm for over, start_s, parts in heard_streams.streams
                  for pcm in [b"".join(parts)]
                  if over and has_voice_at(start_s, pcm, voiced_start_s + 0.02)
                  and has_voice_at(start_s, pcm, voiced_end_s - 0.07)]
         assert whole, (f"no stream over the bridge's voice has the stop's voice ({voiced_start_s:.2f}-"
                        f"{voiced_end_s:.2f} s, the bridge began {play_s:.2f} s) whole")
-    play_s, voiced_start_s, voiced_end_s = plan[2]
-    mine = [u for start_s, end_s, u in spans if start_s < play_s and end_s > voiced_start_s]
-    assert mine and mine[0].ended_deaf, [(round(a, 2), round(b, 2), u.ended_deaf) for a, b, u in spans]
-    assert not any(u.ended_deaf for start_s, _end_s, u in spans if start_s > play_s + 0.5)  # nothing after it
 
 
 def test_what_began_over_the_bridge_voice_is_not_acted_on_unless_it_is_a_stop(whisper_model_dir: Path,
@@ -246,10 +239,6 @@ def test_what_began_over_the_bridge_voice_is_not_acted_on_unless_it_is_a_stop(wh
     cut = pipeline.hear(left, "left", began_deaf=True)
     assert cut.action is None and "began while the bridge was speaking" in cut.reason, cut
     assert pipeline.hear(stop, "stop", began_deaf=True).action == "stop"
-    # the bridge began to speak over it: only its start is there, the same rule
-    cut = pipeline.hear(left, "left", ended_deaf=True)
-    assert cut.action is None and "the bridge began to speak over it" in cut.reason, cut
-    assert pipeline.hear(stop, "stop", ended_deaf=True).action == "stop"
 
 
 def test_the_deaf_time_counts_from_when_the_sound_really_started() -> None:

@@ -209,14 +209,12 @@ class VoicePipeline:
         self._speculated = (pcm, recognition)
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
-             recorded: bool = False, bridge: Bridge | None = None, began_deaf: bool = False,
-             ended_deaf: bool = False) -> Decision:
+             recorded: bool = False, bridge: Bridge | None = None, began_deaf: bool = False) -> Decision:
         """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set).
 
         With a ``bridge``, recorded audio also goes through the stop spotter as it is fed (the
         microphone's is spotted by the ear thread as it is spoken). An utterance that ``began_deaf`` (the pilot
-        was speaking as the bridge's own sound ended: only its end was heard), or that ``ended_deaf`` (the bridge
-        began to speak while it was said: only its start was heard), is acted on only if it is a stop.
+        was speaking as the bridge's own sound ended: only its end was heard) is acted on only if it is a stop.
         """
         spot = self.stop_path if recorded and bridge is not None else None
         speculated, self._speculated = self._speculated, None
@@ -262,10 +260,6 @@ class VoicePipeline:
             decision = replace(decision, action=None, amount=None,
                                reason=f"heard only the end of it ('{decision.text}'): it began while the bridge was "
                                       "speaking; say it again")
-        elif ended_deaf and decision.accepted and decision.action != "stop":
-            decision = replace(decision, action=None, amount=None,
-                               reason=f"heard only the start of it ('{decision.text}'): the bridge began to speak "
-                                      "over it; say it again")
         late_s = time.time() - end_t
         if late_s > LATE_S:
             self.bus.emit("late", f"late: decided {late_s:.1f} s after the utterance ended "
@@ -280,10 +274,10 @@ class VoicePipeline:
 
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
                recorded: bool = False, more_waiting: Callable[[], bool] | None = None,
-               began_deaf: bool = False, ended_deaf: bool = False) -> Request | None:
+               began_deaf: bool = False) -> Request | None:
         """Hear one utterance and hand an accepted action to the bridge (None when rejected: then the paused
         motion resumes, unless ``more_waiting`` says another utterance waits for its decision)."""
-        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge, began_deaf, ended_deaf)
+        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge, began_deaf)
         if not decision.accepted:
             self.settle_pause(bridge, decision, more_waiting is not None and more_waiting())
             return None
@@ -348,7 +342,7 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
     to end is recognised while its closing silence runs out (when nothing else waits), and its
     decision is taken at once if it does end that way.
     """
-    heard: queue.Queue[tuple[bytes, float, bool, bool] | _Tentative | BaseException | None] = queue.Queue()
+    heard: queue.Queue[tuple[bytes, float, bool] | _Tentative | BaseException | None] = queue.Queue()
     if tentatives is not None:
         def tentative(pcm: bytes) -> None:
             pipeline.pause_motion(bridge)  # the speech has ended (the first sign of it): hold until decided
@@ -361,14 +355,13 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             for utterance in utterances:
                 pcm, end_t = utterance[0], utterance[1]
                 began_deaf = isinstance(utterance, HeardUtterance) and utterance.began_deaf
-                ended_deaf = isinstance(utterance, HeardUtterance) and utterance.ended_deaf
                 if bridge.finished:
                     break
                 pipeline.pause_motion(bridge, end_t)  # (already paused by its tentative one, if any)
                 if pipeline.stop_path is not None and not spotted_while_spoken:
                     pipeline.stop_path.feed(bridge, pcm)
                     pipeline.stop_path.end(bridge, end_t)
-                heard.put((pcm, end_t, began_deaf, ended_deaf))
+                heard.put((pcm, end_t, began_deaf))
         except BaseException as exc:  # noqa: BLE001 - handed to the voice thread, which ends the session
             heard.put(exc)
         finally:
@@ -385,9 +378,9 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             if heard.empty():  # a real utterance waiting comes first; a stale guess is skipped
                 pipeline.speculate(item.pcm, stale=lambda pcm=item.pcm: _superseded(heard, pcm))
             continue
-        pcm, end_t, began_deaf, ended_deaf = item
+        pcm, end_t, began_deaf = item
         pipeline.submit(bridge, pcm, "microphone", end_t, more_waiting=lambda: not heard.empty(),
-                        began_deaf=began_deaf, ended_deaf=ended_deaf)
+                        began_deaf=began_deaf)
 
 
 def run_recording(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[HeardUtterance | tuple[bytes, float]],
