@@ -14,11 +14,7 @@ pilot is still speaking as the deaf time ends (a reply begun in its tail, or wor
 the word is taken whole from 0.3 s before the edge, where the bridge's sound has ended: the stop spotter hears it
 as a stream of its own and the segmenter's utterance is that whole word, not its start and end apart. A word begun
 over the bridge's sound itself is still cut; its utterance is marked, and the session does not act on it (a
-"turn left" begun over the bridge's voice must not fly "left"). A word the bridge begins to speak over (a
-warning, or "braking" after the spotter heard a stop in that word) reaches the stop spotter whole: the stream over
-the bridge's voice opens with the word so far. The segmenter's utterance of it has only its start, and is decided
-as it is (live, such words were acted on rightly 59 times of 59 and marking them to refuse all but a stop cost ten
-right commands in 25 minutes: docs/bridge.md).
+"turn left" begun over the bridge's voice must not fly "left").
 """
 
 from __future__ import annotations
@@ -70,9 +66,6 @@ ROOM_S = 3.0
 MARK_ABOVE_DB = 9.0
 #: speech under way at the edge that the segmenter has not found within this long is let go
 CARRY_LIMIT_S = 1.0
-#: when the bridge begins to speak over speech under way that the segmenter has not yet found, the stream over its
-#: voice opens with this much of the microphone from before (a word's start: the segmenter needs about 0.25 s)
-BEGUN_S = 0.5
 #: the stream that carries a word said across the edge starts this long before it (the deaf time ends the tail
 #: after the bridge's sound really ended, EchoGate.record: what the room returned of it, 0.4 s)
 LOOKBACK_S = 0.3
@@ -134,24 +127,17 @@ class _Ear:
         #: ... how far its first EDGE_S was above the quiet, dB (what MARK_ABOVE_DB is judged on)
         self.edge_gap_db: float | None = None
         self.began_deaf = False  # ... it began over the bridge's own sound: only its end is here
-        self.utterance: list[bytes] = []  # the segmenter's utterance in progress, heard open
-        self.before: deque[bytes] = deque(maxlen=max(1, round(BEGUN_S / block_s)))  # the last open blocks
 
     def chunk(self, start_t: float, deaf: bool, pcm: bytes) -> bool:
         """One block captured at ``start_t``; whether the segmenter is to hear it (else silence)."""
         was, self.deaf = self.deaf, deaf
         if deaf:
             if not was:
-                self.floor_db = float(np.percentile(self.room, 20)) if self.room else -30.0
                 if self.state == "open":  # the segmenter's speech so far is decided on its own
                     self.on_speech(None)
-                    last = list(self.room)[-max(1, round(EDGE_S / self.block_s)):]
-                    if self.carry == "lookback" and last and max(last) >= self.floor_db + UNDER_WAY_DB:
-                        # the pilot is speaking as the bridge begins: the word so far opens the stream over its voice
-                        # (the segmenter's utterance, or the last moments if it has not found the speech yet)
-                        self.over_voice(b"".join(self.utterance or self.before))
                 elif self.state == "carry" and self.word:
                     self.on_speech(None)
+                self.floor_db = float(np.percentile(self.room, 20)) if self.room else -30.0
                 self.state, self.held, self.word = "open", [], []
                 self.recent.clear()
                 self.deaf_levels = []
@@ -164,7 +150,6 @@ class _Ear:
             self.state, self.edge_t, self.edge_loud, self.held, self.edge = "edge", start_t, False, [], []
         if self.state == "open":
             self.room.append(_level_db(pcm))
-            self.before.append(pcm)
             return True
         if self.state == "edge":
             self.over_voice(pcm)  # as it is: the deaf time ends when nothing of the bridge's is left in the room
@@ -218,12 +203,9 @@ class _Ear:
         """The segmenter's listener: its utterance's audio, then None at its end."""
         if pcm is not None and self.segment_began is None:
             self.segment_began = self.state
-        if pcm is not None and not self.deaf and self.state == "open":
-            self.utterance.append(pcm)
         if pcm is None:
             began, self.segment_began = self.segment_began, None
             self.whole, self.edge_gap_db, self.began_deaf = None, None, False
-            self.utterance = []
             if began in ("edge", "carry") and self.word and not self.deaf:
                 word = b"".join(self.word)
                 self.whole = (word, self.lookback_bytes, self.edge_t)
