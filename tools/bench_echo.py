@@ -265,8 +265,8 @@ def main(argv: list[str] | None = None) -> int:
         aligned = [f"The same cues in {args.alignments} sessions of 4 plays each, the cue's first sample anywhere in "
                    "the microphone's 32 ms block and the player's clock up to 10 ms off (as a busy machine leaves "
                    "them), the direct path 60 ms late at -26 dBFS voiced, chunk by chunk as a session feeds the "
-                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays (first: of the "
-                   "sessions' first plays, the canceller cold).",
+                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays "
+                   "(first: of the sessions' first plays, the canceller cold).",
                    "", "| cue | " + " | ".join(heads) + " |", "| --- | " + " | ".join("---" for _ in heads) + " |"]
         for said in args.alignment_cues.split(";"):
             fired = [spotted_remains(cue(said), c, over, args.alignments, seed=2, dismiss=d, tail_s=s.tail_s)

@@ -70,7 +70,7 @@ class EchoCanceller:
         self.learn_s = learn_s
         #: seconds of the bridge's own sound the filter has learned from
         self.learned_s = 0.0
-        #: (microphone power, reference power) of the last blocks with the bridge's sound in them
+        #: (microphone power, reference power) of the blocks with the bridge's sound in them, while it learns
         self._coupling: list[tuple[float, float]] = []
         #: power per block of the microphone and of what was left of it, the last few seconds (newest last)
         self._levels: list[tuple[float, float]] = []
@@ -168,11 +168,12 @@ class EchoCanceller:
         # every echo canceller has): per bin, the share of what is left that the echo estimate says is ours
         echo_power = self._echo_power
         ref_power = float(np.mean(ref ** 2))
+        learning = self.learned_s < self.learn_s
         if ref_power > 1.0:  # above one 16-bit step: the bridge's sound, not the silence between its cues
             self.learned_s += b / self.rate
-            self._coupling.append((float(np.mean(mic ** 2)), ref_power))
-            del self._coupling[:-200]
-        if self.learned_s < self.learn_s and self._coupling:
+            if learning:
+                self._coupling.append((float(np.mean(mic ** 2)), ref_power))
+        if learning and self._coupling:
             # Still learning: the echo is taken to be as loud, in every bin, as the loudest the bridge played there
             # within the modelled path, times how loud the room has returned it so far (whatever the delay)
             coupling = sum(m for m, _r in self._coupling) / sum(r for _m, r in self._coupling)

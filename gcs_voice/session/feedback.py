@@ -137,8 +137,7 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
 
 #: the echo canceller's settings in sounds.toml [echo] (``EchoCanceller``'s keywords)
 ECHO_KEYS = ("length_s", "step", "min_step", "regularization", "suppress", "comfort_noise_dbfs", "residual_gate_db",
-             "learn_s",
-             "window_s", "loud_db")
+             "window_s", "loud_db", "learn_s")
 
 
 def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSettings:
