@@ -70,8 +70,8 @@ class EchoCanceller:
         self.learn_s = learn_s
         #: seconds of the bridge's own sound the filter has learned from
         self.learned_s = 0.0
-        #: (microphone power, reference power) of the blocks with the bridge's sound in them, while it learns
-        self._coupling: list[tuple[float, float]] = []
+        #: the microphone's and the reference's power summed over the blocks with the bridge's sound, while it learns
+        self._mic_sum = self._ref_sum = 0.0
         #: power per block of the microphone and of what was left of it, the last few seconds (newest last)
         self._levels: list[tuple[float, float]] = []
         bins = block + 1
@@ -172,11 +172,12 @@ class EchoCanceller:
         if ref_power > 1.0:  # above one 16-bit step: the bridge's sound, not the silence between its cues
             self.learned_s += b / self.rate
             if learning:
-                self._coupling.append((float(np.mean(mic ** 2)), ref_power))
-        if learning and self._coupling:
+                self._mic_sum += float(np.mean(mic ** 2))
+                self._ref_sum += ref_power
+        if learning and self._ref_sum > 0:
             # Still learning: the echo is taken to be as loud, in every bin, as the loudest the bridge played there
             # within the modelled path, times how loud the room has returned it so far (whatever the delay)
-            coupling = sum(m for m, _r in self._coupling) / sum(r for _m, r in self._coupling)
+            coupling = self._mic_sum / self._ref_sum
             echo_power = np.maximum(echo_power, coupling * np.max(np.abs(self._x) ** 2, axis=0))
         gain = np.clip(1.0 - self.suppress * echo_power / (self._error_power + 1e-9), 0.05, 1.0)
         return np.fft.irfft(e * gain)[b:]
