@@ -546,6 +546,57 @@ def gate(engine: str = "whisper-score") -> str:
     return "\n".join(lines)
 
 
+def _classes_heard(row: dict, dictionary) -> list[str | None]:
+    """The action class of each of an engine's hypotheses (None where it is no phrase: garbage)."""
+    return [getattr(dictionary.by_key.get(normalize_text(text)), "action", None) for text, _, _ in row["hypotheses"]]
+
+
+def second_ear(engine: str = "whisper-score") -> str:
+    """What PocketSphinx, the one other English model here, would do as a second ear beside Whisper.
+
+    Whisper's wrong actions on real speech in noise are confident mishearings ("back" written for a "left", "Stay"
+    for a "right"), which no threshold on Whisper's own scores removes without losing many right commands. An
+    independent ear could veto them: Whisper's action is dropped when PocketSphinx's grammar decode of the same
+    audio (its best hypothesis, or any of its n-best) names another command. This counts what each veto would
+    cost and save on both splits; it is not shipped (the table is the reason)."""
+    primary, second = load_cache(engine), load_cache("sphinx")
+    dictionary = load_language("en")
+    matcher = get_matcher(MATCHER)
+    lines = ["## PocketSphinx as a second ear beside Whisper", "",
+             "Whisper's action (the shipped decision) is vetoed when PocketSphinx's grammar decode of the same audio",
+             "names a command of another class: its best hypothesis (*best*), or every command among its n-best (*n-best*:",
+             "none of them Whisper's class). Each cell: commands Whisper gets right that the veto would lose, and its",
+             "wrong actions (commands and non-commands acted on) that the veto would remove, of all of them; summed over "
+             f"{', '.join(GATE_CONDITIONS)}.",
+             f"Command: `python -m tools.bench_real recognise --engine sphinx` beside the Whisper recognitions, then "
+             "`python -m tools.bench_real second-ear`.", "",
+             "| split | right acted on | right lost (best) | right lost (n-best) | wrong acted on | wrong removed (best) "
+             "| wrong removed (n-best) |", "| --- | --- | --- | --- | --- | --- | --- |"]
+    for name in ("dev", "test"):
+        right = wrong = lost_best = lost_any = saved_best = saved_any = 0
+        for rec in load_recordings(split=name):
+            for condition in GATE_CONDITIONS:
+                row, other = primary.get(_key(rec, condition)), second.get(_key(rec, condition))
+                if row is None or other is None:
+                    continue
+                action = matcher.decide(_recognition(row), [dictionary]).action
+                if action is None:
+                    continue
+                heard = _classes_heard(other, dictionary)
+                veto_best = bool(heard) and heard[0] is not None and heard[0] != action
+                veto_any = any(heard) and action not in heard
+                if action == rec.action:
+                    right += 1
+                    lost_best += veto_best
+                    lost_any += veto_any
+                else:
+                    wrong += 1
+                    saved_best += veto_best
+                    saved_any += veto_any
+        lines.append(f"| {name} | {right} | {lost_best} | {lost_any} | {wrong} | {saved_best} | {saved_any} |")
+    return "\n".join(lines)
+
+
 # -- report -------------------------------------------------------------------------------------------
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
@@ -811,6 +862,7 @@ def main(argv: list[str] | None = None) -> int:
     sub.add_parser("gate", help="what a floor on Whisper's confidence in its own transcript would cost and save")
     grd = sub.add_parser("guard", help="what the weak-match guard costs on real English, and its value")
     grd.add_argument("--write", action="store_true", help="write the chosen min_shared into thresholds.toml")
+    sub.add_parser("second-ear", help="what PocketSphinx vetoing Whisper's actions would cost and save (not shipped)")
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
@@ -865,6 +917,9 @@ def main(argv: list[str] | None = None) -> int:
         print(guard(args.write))
     if args.stage == "gate":
         print(gate())
+        return 0
+    if args.stage == "second-ear":
+        print(second_ear())
         return 0
     if args.stage == "stays":
         print(stays())
