@@ -60,7 +60,7 @@ def test_spanish_stop_words_get_their_own_pronunciations():
     assert spotter.decoder.lookup_word("para_es") == "P AA R AA"
 
 
-def test_over_the_bridge_voice_it_is_stricter_and_the_usual_search_comes_back(real_speech_dir):
+def test_over_the_bridge_voice_its_own_threshold_applies_and_the_usual_search_comes_back(real_speech_dir):
     """Audio heard while the bridge speaks is spotted with ``over_voice_threshold``; the next utterance, with the
     usual threshold again. The stop words fire at the usual threshold's 1e-15 and mostly not at 1e-3."""
     strict = load_stop_spotter(["en"], over_voice_thresholds={"en": 1e-3})

@@ -74,8 +74,8 @@ class StopSpotter:
         missing = [line.split()[0] for line in lines if self.decoder.lookup_word(line.split()[0]) is None]
         if missing:
             raise ModelError(f"stop spotter words without pronunciation: {', '.join(missing)}")
-        # Two searches over the same words: the usual one, and a stricter one for what the microphone hears
-        # while the bridge itself speaks (what the echo canceller leaves of its words can sound like "stay")
+        # Two searches over the same words: the usual one, and one (over_voice_threshold) for what the microphone
+        # hears while the bridge itself speaks (what the echo canceller leaves of its words can sound like "stay")
         for search, search_lines in ((SEARCH, lines), (OVER_VOICE_SEARCH, over_voice)):
             with tempfile.NamedTemporaryFile("w", suffix=".kws", delete=False) as f:
                 f.write("\n".join(search_lines) + "\n")
@@ -90,7 +90,7 @@ class StopSpotter:
 
     def spot(self, pcm: bytes, over_voice: bool = False) -> StopHit:
         """Whether a stop word is anywhere in this utterance (decoded whole); ``over_voice``: heard while the
-        bridge itself was speaking (the stricter threshold)."""
+        bridge itself was speaking (over_voice_threshold)."""
         stream = self.start_stream(over_voice)
         stream.accept(pcm)
         return stream.finish()

@@ -71,7 +71,7 @@ class StopPath:
         self._fired = False
 
     def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None, over_voice: bool = False) -> None:
-        """``over_voice``: heard while the bridge itself was speaking (the spotter's stricter threshold)."""
+        """``over_voice``: heard while the bridge itself was speaking (the spotter's over_voice_threshold)."""
         if pcm is None:
             self.end(bridge, end_t)
             return
