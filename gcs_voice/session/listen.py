@@ -51,6 +51,9 @@ BYTES_PER_S = 32_000
 LATE_S = 2.0
 #: how long the voice side waits for the bridge to send a spotted stop before it goes on
 STOP_WAIT_S = 1.0
+#: a stop word heard over the bridge's own voice this soon after a stop this path sent, with the vehicle still
+#: holding on it, is that stop heard again (the end of the pilot's word under the bridge's "braking"): not re-sent
+REPEAT_OVER_VOICE_S = 3.0
 #: how long a script waits for its take-off or landing to end before it goes on
 OPERATION_WAIT_S = 60.0
 
@@ -69,6 +72,7 @@ class StopPath:
         self.own_echo: Callable[[], bool] | None = None
         self._stream: SpotStream | None = None
         self._fired = False
+        self._last_stop: Request | None = None  # the stop this path sent last
 
     def feed(self, bridge: Bridge, pcm: bytes | None, end_t: float | None = None, over_voice: bool = False) -> None:
         """``over_voice``: heard while the bridge itself was speaking (the spotter's over_voice_threshold)."""
@@ -100,12 +104,31 @@ class StopPath:
         self._fired = False
         return hit.word
 
+    def _repeat(self, bridge: Bridge, now: float) -> float | None:
+        """Seconds since the stop this path sent last, if the vehicle still holds on it and it is recent."""
+        last = self._last_stop
+        if last is None or not last.accepted or now - last.decided_t > REPEAT_OVER_VOICE_S:
+            return None
+        mapper = bridge.mapper
+        if mapper.action != "stop" or mapper.paused is not None or bridge.busy:
+            return None  # something was commanded since: a stop now is a new one
+        return now - last.decided_t
+
     def _stop(self, bridge: Bridge, word: str | None, end_t: float | None, during: bool, over_voice: bool) -> None:
         now = time.time()
         where = " over the bridge's voice" if over_voice else ""
+        since = self._repeat(bridge, now) if over_voice else None
+        if since is not None:
+            # The bridge's voice that it was heard over is, most likely, the cue of that very stop; the vehicle
+            # already holds, so sending it again would change nothing but the decisions the pilot hears of.
+            self.bus.emit("spotted", f"stop word {word!r} heard again{where} {since:.1f} s after the stop just sent: "
+                          "already holding, not sent again", word=word, utterance_end_t=end_t, spotted_t=now,
+                          over_voice=over_voice, repeat=True)
+            return
         self.bus.emit("spotted", f"stop word {word!r} heard{where}{' (still speaking)' if during else ''}: stopping now",
                       word=word, utterance_end_t=end_t, spotted_t=now, over_voice=over_voice)
         request = bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
+        self._last_stop = request
         # Wait (a few ms) until the bridge has sent it: the main recogniser that runs next may hold the
         # interpreter for a second (PocketSphinx decodes without releasing the GIL) and starve the bridge.
         request.done.wait(STOP_WAIT_S)
