@@ -297,3 +297,75 @@ def test_a_first_chunk_held_up_does_not_set_the_microphone_clock_late() -> None:
     errors = [t - (started[0] + i * block_s) for i, t in enumerate(captured)]
     assert errors[0] > 0.2  # the first chunk alone says it was captured late
     assert abs(errors[-1]) < 0.1, f"the last chunk's capture time is {errors[-1]:+.3f} s off"
+
+
+def _cue_begun_while_the_pilot_speaks(word: bytes, wait_for_pilot_s: float):
+    """A warning that comes the moment the segmenter hears the pilot begin ``word`` (real time, Silero, the
+    bridge's sound played into the microphone through an echo room): (utterances, when the segmenter said the
+    pilot was done, when the cue began, the bus)."""
+    from dataclasses import replace
+
+    from gcs_voice.session.events import EventBus
+    from gcs_voice.session.feedback import Feedback
+
+    settings = replace(load_sound_settings(), wait_for_pilot_s=wait_for_pilot_s)
+    gate = EchoGate(settings.tail_s)
+    room = EchoRoom(1.0, 0.06)
+    bus = EventBus()
+    feedback = Feedback("speech", {"en": load_phrases("en")}, "en", room, gate, bus, settings)
+    bus.subscribe(feedback)
+    played = threading.Event()
+    bus.subscribe(lambda e: played.set() if e.kind == "feedback" else None)
+    marks: dict[str, float] = {}
+
+    def speaking(now: bool) -> None:
+        gate.pilot_speaking(now)
+        if now and "began" not in marks:
+            marks["began"] = time.time()
+            bus.emit("link", "link lost", state="lost")  # a warning at the worst moment
+        elif not now and "began" in marks and "done" not in marks:
+            marks["done"] = time.time()
+
+    recording = bytes(2 * SAMPLE_RATE) + word + bytes(3 * 2 * SAMPLE_RATE)
+    chunks = room.hear(paced_chunks(recording, on_start=room.start))
+    utterances = list(microphone_utterances(chunks=chunks, deaf=gate.deaf, speaking=speaking))
+    assert played.wait(10.0), [e.msg for e in bus.history]
+    feedback.close()
+    return utterances, marks.get("done"), feedback.played[0][0], bus
+
+
+def test_the_bridge_waits_for_the_pilot_to_finish_a_word_before_it_speaks(real_speech_dir: Path) -> None:
+    """A cue begun over a word makes the microphone deaf mid-word: the word is cut in two (a stop so cut was
+    heard by neither half in a live session). The bridge waits for the segmenter to close the pilot's utterance,
+    and the word is heard whole; with no wait, the same word is cut (so this test can fail)."""
+    from tools.real_speech import load_recordings
+
+    word = read_wav(next(r.path for r in load_recordings(real_speech_dir, split="test") if r.action == "go_forward"))
+    utterances, done_t, cue_t, _bus = _cue_begun_while_the_pilot_speaks(word, 2.0)
+    assert done_t is not None and cue_t >= done_t, (done_t, cue_t)
+    assert len(utterances) == 1 and len(utterances[0].pcm) >= 0.6 * len(word), [len(u.pcm) for u in utterances]
+    cut, _done, _cue, _ = _cue_begun_while_the_pilot_speaks(word, 0.0)
+    assert sum(len(u.pcm) for u in cut) < 0.6 * len(word), "without the wait the word should have been cut"
+
+
+def test_a_pilot_who_talks_on_still_hears_the_warning_after_the_wait() -> None:
+    from dataclasses import replace
+
+    from gcs_voice.audio.speaker import TimedSink
+    from gcs_voice.session.events import EventBus
+    from gcs_voice.session.feedback import Feedback
+
+    gate = EchoGate(0.0)
+    bus = EventBus()
+    feedback = Feedback("tones", {"en": load_phrases("en")}, "en", TimedSink(), gate, bus,
+                        replace(load_sound_settings(), wait_for_pilot_s=0.3))
+    bus.subscribe(feedback)
+    played = threading.Event()
+    bus.subscribe(lambda e: played.set() if e.kind == "feedback" else None)
+    gate.pilot_speaking(True)  # and never stops
+    asked = time.time()
+    bus.emit("link", "link lost", state="lost")
+    assert played.wait(10.0), [e.msg for e in bus.history]
+    feedback.close()
+    assert feedback.played[0][0] >= asked + 0.3
+    assert any(e.kind == "warning" and "still speaking" in e.msg for e in bus.history)

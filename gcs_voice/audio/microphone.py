@@ -228,7 +228,8 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                           chunks: Iterable[AudioChunk] | None = None,
                           deaf: Callable[[float, float], bool] | None = None,
                           clean: Callable[[float, bytes], bytes] | None = None,
-                          on_speech_over_voice: Callable[[bytes | None], None] | None = None
+                          on_speech_over_voice: Callable[[bytes | None], None] | None = None,
+                          speaking: Callable[[bool], None] | None = None
                           ) -> Iterator[HeardUtterance]:
     """Each utterance (PCM, UNIX time the speech ended, whether it began deaf), until the consumer stops.
 
@@ -240,7 +241,9 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
     ``clean(start_t, pcm)`` takes the bridge's own sound out of what the listener hears while deaf, and
     ``on_speech_over_voice`` (default ``on_speech``) hears that deaf time's audio, as a stream of its own: it is
     judged more strictly, since what is left of the bridge's words can sound like a stop word; a word said across
-    the end of the deaf time goes to it whole (``_Ear``).
+    the end of the deaf time goes to it whole (``_Ear``). ``speaking(True)`` is said while the segmenter is in an
+    utterance (from its first sign of speech to the end of its closing silence), ``speaking(False)`` after: the
+    bridge's speaker waits for it (``EchoGate.pilot_speaking``).
     """
     from gcs_voice.audio.sources import AudioChunk, microphone_chunks
     from gcs_voice.audio.vad import segment_utterances
@@ -271,7 +274,13 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
                     chunk = AudioChunk(bytes(len(chunk.pcm)), chunk.start_s)
             yield chunk
 
-    listen = on_speech if deaf is None else ear.segmenter_speech
+    segmenter_listener = on_speech if deaf is None else ear.segmenter_speech
+
+    def listen(pcm: bytes | None) -> None:
+        if speaking is not None:
+            speaking(pcm is not None)
+        if segmenter_listener is not None:
+            segmenter_listener(pcm)
 
     def whole(utterance: Utterance, carried: tuple[bytes, int, float] | None) -> bytes:
         """The utterance, or when it began at the edge the whole word (from before the edge) to its end."""

@@ -51,6 +51,21 @@ class EchoGate:
         #: the sounds themselves, (start UNIX time, float samples): the echo canceller's reference
         self._sounds: list[tuple[float, np.ndarray]] = []
         self._lock = threading.Lock()
+        self._pilot_quiet = threading.Condition(self._lock)
+        self._pilot_speaking = False
+
+    def pilot_speaking(self, speaking: bool) -> None:
+        """The segmenter is (True) or is no longer (False) in an utterance of the pilot's. A sound begun over a
+        word cuts the word in two (the microphone goes deaf at once), so the speaker waits for the pilot's turn."""
+        with self._lock:
+            if speaking != self._pilot_speaking:
+                self._pilot_speaking = speaking
+                self._pilot_quiet.notify_all()
+
+    def wait_pilot_done(self, timeout_s: float) -> bool:
+        """Wait, up to ``timeout_s``, until the pilot is not speaking; whether the pilot is quiet now."""
+        with self._lock:
+            return self._pilot_quiet.wait_for(lambda: not self._pilot_speaking, timeout_s)
 
     def hold(self, start_t: float, duration_s: float) -> None:
         """A sound starts at ``start_t`` (call before it does) and lasts ``duration_s``."""

@@ -100,6 +100,8 @@ class SoundSettings:
     speed_wpm: int
     #: the echo canceller's settings (``gcs_voice.audio.echo_cancel.EchoCanceller``'s keywords); None: off
     echo_cancel: dict[str, float] | None = None
+    #: how long a cue waits for the pilot to finish a word before it is played over it
+    wait_for_pilot_s: float = 2.0
 
 
 def _load(path: Path) -> dict[str, Any]:
@@ -153,8 +155,13 @@ def load_sound_settings(path: Path = FEEDBACK_DIR / "sounds.toml") -> SoundSetti
             cancel = {key: float(echo[key]) for key in ECHO_KEYS if key in echo}
         except (TypeError, ValueError):
             raise GcsVoiceError(f"{path}: [echo] {', '.join(ECHO_KEYS)} must be numbers") from None
+    try:
+        wait_s = float(echo.get("wait_for_pilot_s", 2.0))
+    except (TypeError, ValueError):
+        raise GcsVoiceError(f"{path}: [echo] wait_for_pilot_s must be a number of seconds") from None
     return SoundSettings(float(data.get("amplitude", 0.3)), float(data.get("fade_s", 0.005)), tones,
-                         float(echo.get("tail_s", 0.4)), int(data.get("speech", {}).get("speed_wpm", 175)), cancel)
+                         float(echo.get("tail_s", 0.4)), int(data.get("speech", {}).get("speed_wpm", 175)), cancel,
+                         wait_s)
 
 
 def cue_for(event: Event, phrases: Phrases) -> Cue | None:
@@ -232,6 +239,7 @@ class Feedback:
         self.gate = gate
         self.bus = bus
         s = sounds or load_sound_settings()
+        self.wait_for_pilot_s = s.wait_for_pilot_s
         self.tones = {name: tone(notes, s.amplitude, s.fade_s) for name, notes in s.tones.items()}
         self.speech: dict[str, Speech] = {}
         if mode == "speech":
@@ -318,6 +326,15 @@ class Feedback:
                 cue = self._queue.popleft()
             if cue.stale_s is not None and time.time() - cue.queued_t > cue.stale_s:
                 continue
+            # The pilot's turn first: a sound begun over a word cuts it in two (the microphone goes deaf), and a
+            # stop cut so may be heard by neither half. A cue that has waited long enough is played over it.
+            if not self.gate.wait_pilot_done(self.wait_for_pilot_s):
+                self.bus.emit("warning", f"feedback: the pilot was still speaking after {self.wait_for_pilot_s:g} s; "
+                              "said over it", source="feedback")
+            with self._ready:
+                newer = cue.decision and any(c.decision for c in self._queue)
+            if newer or (cue.stale_s is not None and time.time() - cue.queued_t > cue.stale_s):
+                continue  # a newer decision came while the pilot spoke, or the moment passed
             pcm = self.tones[cue.tone]
             speech = self.speech.get(self.language)
             if speech is not None and cue.words:

@@ -307,7 +307,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                                    microphone_utterances(talk if config.push_to_talk else None, on_speech=on_speech,
                                                          on_tentative=tentatives,
                                                          deaf=gate.deaf if gate is not None else None, clean=clean,
-                                                         on_speech_over_voice=over_voice),
+                                                         on_speech_over_voice=over_voice,
+                                                         speaking=gate.pilot_speaking if gate is not None else None),
                                    stop_path is not None, tentatives)
             else:
                 from gcs_voice.audio.sources import AudioChunk, paced_chunks
@@ -329,7 +330,8 @@ def _run_session(config: SessionConfig, voice: Voice | None) -> SessionResult:
                                    microphone_utterances(on_speech=on_speech, on_tentative=tentatives,
                                                          chunks=recording(),
                                                          deaf=gate.deaf if gate is not None else None, clean=clean,
-                                                         on_speech_over_voice=over_voice),
+                                                         on_speech_over_voice=over_voice,
+                                                         speaking=gate.pilot_speaking if gate is not None else None),
                                    stop_path is not None, tentatives, config.hold_s)
         if not config.headless and sys.stdin.isatty():
             from gcs_voice.session.keys import start_key_thread
