@@ -19,7 +19,8 @@ __all__ = ["Event", "EventBus", "KINDS", "heard_words"]
 KINDS: dict[str, str] = {
     "session": "start/end of a session: phase, argv, versions, files",
     "link": "state connected|lost|restored, autopilot, vehicle ids",
-    "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t",
+    "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t, "
+               "over_voice; repeat (no stop follows: the stop just sent heard again over the bridge's voice)",
     "own_echo": "over the bridge's voice, the stop spotter heard a stop word in nothing but what the echo canceller "
                 "left of the bridge's own sound (no stop): words",
     "paused": "the motion held while an utterance is decided (state paused), then resumed after speech that was "
