@@ -154,7 +154,10 @@ def analyse(work: Path, shown: str, took: str, echo_db: float, delay_ms: float, 
     own_commands = [e for e in commands if e.get("utterance_end_t") in own_ends]
     said = [e for e in events if e["kind"] == "feedback" and e["played_t"] >= t0]  # (before: no microphone yet)
     deaf = [(e["played_t"] - t0, e["played_t"] - t0 + e["seconds"] + tail_s) for e in said]
-    spotted = [e for e in events if e["kind"] == "spotted"]
+    # a stop word heard again over the bridge's voice while the vehicle still held on the stop just sent is not sent
+    # (StopPath, session 31): counted apart
+    repeats = [e for e in events if e["kind"] == "spotted" and e.get("repeat")]
+    spotted = [e for e in events if e["kind"] == "spotted" and not e.get("repeat")]
     # a log of before the over_voice field: a stop spotted while the microphone was deaf was spotted over the voice
     inferred = any("over_voice" not in e for e in spotted)
 
@@ -222,6 +225,8 @@ def analyse(work: Path, shown: str, took: str, echo_db: float, delay_ms: float, 
         f"| rejections | {len(rejected)} | {len(own_rejected)} |",
         f"| stops fired by the spotter | {len(spotted)} | {len(own_spotted)} |",
         f"| of them over the bridge's voice | {len(over_spotted)} | {len(own_over)} |",
+        f"| stop words heard again over the bridge's voice, the vehicle still holding on the stop just sent (no stop)"
+        f" | {len(repeats)} | |",
         f"| stop words dismissed as the bridge's own echo's remains (no stop) | {len(dismissed)} | "
         f"{len(dismissed) - len(pilots_dismissed)} (the rest near a pilot's clip: {len(pilots_dismissed)}) |",
         "",
