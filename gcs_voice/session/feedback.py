@@ -255,6 +255,7 @@ class Feedback:
         self._last_waiting: tuple[str, float] = ("", 0.0)
         self._last_mode = ""
         self._last_said: tuple[str, str, float] = ("", "", 0.0)  # tone, words, when queued
+        self._said_over_t = 0.0  # when a cue was last said over the pilot (after wait_for_pilot_s)
         #: cues played, as (UNIX time started, cue, seconds): for the log and the tests
         self.played: list[tuple[float, Cue, float]] = []
         self._warm()  # before the session flies: the first cue is as quick as any
@@ -328,7 +329,8 @@ class Feedback:
                 continue
             # The pilot's turn first: a sound begun over a word cuts it in two (the microphone goes deaf), and a
             # stop cut so may be heard by neither half. A cue that has waited long enough is played over it.
-            if not self.gate.wait_pilot_done(self.wait_for_pilot_s):
+            if not self.gate.wait_pilot_done(self.wait_for_pilot_s) and time.time() - self._said_over_t > 60.0:
+                self._said_over_t = time.time()  # said once a minute at most: in babble it could be every cue
                 self.bus.emit("warning", f"feedback: the pilot was still speaking after {self.wait_for_pilot_s:g} s; "
                               "said over it", source="feedback")
             with self._ready:
