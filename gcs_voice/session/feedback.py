@@ -65,6 +65,11 @@ class Cue:
     stale_s: float | None = None
     queued_t: float = 0.0
 
+    @property
+    def stale(self) -> bool:
+        """Queued longer ago than ``stale_s``: the moment to say it has passed."""
+        return self.stale_s is not None and time.time() - self.queued_t > self.stale_s
+
 
 @dataclass(frozen=True)
 class Phrases:
@@ -325,7 +330,7 @@ class Feedback:
                 if not self._queue:
                     return
                 cue = self._queue.popleft()
-            if cue.stale_s is not None and time.time() - cue.queued_t > cue.stale_s:
+            if cue.stale:
                 continue
             # The pilot's turn first: a sound begun over a word cuts it in two (the microphone goes deaf), and a
             # stop cut so may be heard by neither half. A cue that has waited long enough is played over it.
@@ -335,7 +340,7 @@ class Feedback:
                               "said over it", source="feedback")
             with self._ready:
                 newer = cue.decision and any(c.decision for c in self._queue)
-            if newer or (cue.stale_s is not None and time.time() - cue.queued_t > cue.stale_s):
+            if newer or cue.stale:
                 continue  # a newer decision came while the pilot spoke, or the moment passed
             pcm = self.tones[cue.tone]
             speech = self.speech.get(self.language)
