@@ -389,6 +389,22 @@ def test_spanish_is_heard_with_seseo() -> None:
     assert matcher.word_distance("casa", "cara", ES) > 0.0
 
 
+def test_a_command_written_as_one_word_is_judged_by_its_sound() -> None:
+    """Spanish runs its words together ("a la derecha" is said "aladerecha"), and Whisper writes it so:
+    "Desarmamotores", "Aramelecha". Each heard word is judged against the class's words, and also against the words
+    of one of its phrases run together up to the last (the word that names the side or the motors). A run that stops
+    short of it ("hacia la", which every side has) is no evidence: espeak-ng "hacia atrás" under noise, heard
+    "Aseafla" and scored nearest "a la izquierda", stays undone. Transcripts, margins and class gaps as Whisper base
+    gave them (python -m tools.bench_spanish, its recognise cache)."""
+    for phrase, transcript, margin, gap, action in (("desarmar motores", "Desarmamotores", -0.57, 5.24, "disarm"),
+                                                    ("a la derecha", "Aramelecha", -0.45, 0.87, "go_right"),
+                                                    ("a la derecha", "Aramelecha", -1.09, 3.50, "go_right")):
+        decision = get_matcher("phonetic").decide(_scored_in(phrase, transcript, "es", margin, gap), [ES])
+        assert decision.action == action, decision
+    decision = get_matcher("phonetic").decide(_scored_in("a la izquierda", "Aseafla", "es", -0.61, 1.14), [ES])
+    assert decision.action is None and "'aseafla' is in no go_left phrase" in decision.reason, decision
+
+
 @pytest.mark.parametrize("lang", ["en", "es", "ko"])
 def test_a_transcript_sharing_almost_no_sound_with_its_phrase_does_nothing_in_every_language(lang: str) -> None:
     """The same case in every bundled language: every phrase scored within the margin and the class gap acts when

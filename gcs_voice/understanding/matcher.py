@@ -233,6 +233,10 @@ class Matcher:
         if limit is None or (short and not limits.get("judge_all_words")):
             return ""  # no more words than the command itself: the margin has judged them
         words = {w for p in best.dictionary.phrases if p.action == best.phrase.action for w in p.match_key.split()}
+        # ... and the class's words run together: Whisper writes connected speech as one word ("Desarmamotores",
+        # "Aramelecha" for "a la derecha"), as it splits one in two ("de tener" for "detener", below)
+        joined_words = {"".join(run) for p in best.dictionary.phrases if p.action == best.phrase.action
+                        for run in _runs(p.match_key.split())}
         # a negation word is judged by its own rule (_negation_reason): it refuses any class but a stop, and
         # "Don't stop!" stops
         vocabulary = {w for p in best.dictionary.phrases for w in p.match_key.split()} | set(best.dictionary.negations)
@@ -243,7 +247,7 @@ class Matcher:
         def distance(word: str) -> float:  # to the nearest word of the class; 0 for any dictionary word
             if word in vocabulary:
                 return 0.0
-            return min((self.word_distance(word, w, best.dictionary) for w in words), default=1.0)
+            return min((self.word_distance(word, w, best.dictionary) for w in words | joined_words), default=1.0)
 
         heard_words = heard.split()
         second = next((w for w in heard_words if w not in words and w in commands), None)
@@ -344,6 +348,12 @@ class Matcher:
 
 #: the one class a negation does not refuse: "don't stop" stopping costs a pause, a refused stop a wall
 ALWAYS_SAFE = "stop"
+
+
+def _runs(words: Sequence[str]) -> list[tuple[str, ...]]:
+    """Every run of two or more consecutive words of a phrase that ends on its last word (the one that says which
+    class: "la derecha", not "hacia la", which every side has)."""
+    return [tuple(words[i:]) for i in range(len(words) - 1)]
 
 
 def _lost_number_reason(recognition: Recognition, best: Candidate) -> str:
