@@ -14,7 +14,7 @@ the real noises at 12 dB; three voices dev, three test):
 As for English (``python -m tools.bench_stop_spotter``), the spotter trades precision for never waiting; ``--sweep``
 adds more lenient thresholds. Test voices are reported beside dev; nothing is chosen here on them.
 
-    python -m tools.bench_spotter_spanish --out docs/bench/spotter_spanish.md
+    python -m tools.bench_spotter_spanish --sweep 1e-20,1e-25,1e-30 --every 4 --out docs/bench/spotter_spanish.md
 """
 
 from __future__ import annotations
@@ -28,6 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from tools import bench_spanish as bs
+from tools.bench_real import pct
 
 REPO = Path(__file__).resolve().parent.parent
 SETTINGS = REPO / "gcs_voice" / "asr" / "stop_spotter.toml"
@@ -61,10 +62,6 @@ def fires(words: list[str], items: list[bs.Item], threshold: float) -> dict[str,
     return {w: {i.key for i in items if slots[w].get(i.key)} for w in words}
 
 
-def pct(n: int, d: int) -> str:
-    return f"{100 * n / d:.1f} % ({n}/{d})" if d else "-"
-
-
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.bench_spotter_spanish", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the tables here (markdown) as well as to stdout")
@@ -84,10 +81,16 @@ def main(argv: list[str] | None = None) -> int:
         keys = {i.key for i in selected}
         return set().union(*(heard[w] & keys for w in words)) if words else set()
 
+    def cells(fired: set[str], groups: tuple[list[bs.Item], ...]) -> str:
+        """Hits and false alarms, dev then test: how many of each group's items fired, as table cells."""
+        return " | ".join(pct(len(fired & {i.key for i in group}), len(group)) for group in groups)
+
+    groups = (stops["dev"], other["dev"], stops["test"], other["test"])
+
     # the words worth listening for at this threshold: those that catch at least one dev stop phrase (a word that
     # catches none only adds false alarms)
     chosen = [w for w in candidates if caught([w], stops["dev"])]
-    lines = [f"# The stop spotter in Spanish (synthetic speech)", "",
+    lines = ["# The stop spotter in Spanish (synthetic speech)", "",
              f"Command: `python -m tools.bench_spotter_spanish"
              + (f" --sweep {args.sweep} --every {args.every}` (first table: the shipped threshold)" if args.sweep else "`")
              + ". The utterances of `python -m tools.bench_spanish` "
@@ -100,18 +103,11 @@ def main(argv: list[str] | None = None) -> int:
              "| word | phones | shipped | dev hits | dev false alarms | test hits | test false alarms |",
              "| --- | --- | --- | --- | --- | --- | --- |"]
     for w in candidates:
-        lines.append(f"| {w} | {settings['phones'][w]} | {'yes' if w in shipped else 'no'} | "
-                     f"{pct(len(caught([w], stops['dev'])), len(stops['dev']))} | "
-                     f"{pct(len(caught([w], other['dev'])), len(other['dev']))} | "
-                     f"{pct(len(caught([w], stops['test'])), len(stops['test']))} | "
-                     f"{pct(len(caught([w], other['test'])), len(other['test']))} |")
+        lines.append(f"| {w} | {settings['phones'][w]} | {'yes' if w in shipped else 'no'} | {cells(heard[w], groups)} |")
     lines += ["", "Sets: the shipped words, and the words that catch at least one dev stop phrase at this threshold.", "",
               "| set | dev hits | dev false alarms | test hits | test false alarms |", "| --- | --- | --- | --- | --- |"]
     for name, words in (("shipped: " + ", ".join(shipped), shipped), ("catching a dev stop: " + ", ".join(chosen), chosen)):
-        lines.append(f"| {name} | {pct(len(caught(words, stops['dev'])), len(stops['dev']))} | "
-                     f"{pct(len(caught(words, other['dev'])), len(other['dev']))} | "
-                     f"{pct(len(caught(words, stops['test'])), len(stops['test']))} | "
-                     f"{pct(len(caught(words, other['test'])), len(other['test']))} |")
+        lines.append(f"| {name} | {cells(set().union(*(heard[w] for w in words)), groups)} |")
     missed = {}
     for i in stops["test"]:
         if i.key not in caught(chosen, stops["test"]):
@@ -121,25 +117,17 @@ def main(argv: list[str] | None = None) -> int:
               + (", ".join(f"{t} ({n})" for t, n in sorted(missed.items(), key=lambda kv: -kv[1])) or "none"),
               "", "Test utterances it fires on that are no stop (first 30): " + ("; ".join(false_test[:30]) or "none"), ""]
     if args.sweep:
-        lines += [f"## Other thresholds", "",
+        lines += ["## Other thresholds", "",
                   f"Command: `python -m tools.bench_spotter_spanish --sweep {args.sweep} --every {args.every}`: every "
                   f"stop phrase, and every {args.every}th other utterance (false alarms of that sample).", "",
                   "| threshold | word | dev hits | dev false alarms | test hits | test false alarms |",
                   "| --- | --- | --- | --- | --- | --- |"]
+        sampled = (stops["dev"], other["dev"][::args.every], stops["test"], other["test"][::args.every])
         for threshold in (float(t) for t in args.sweep.split(",")):
-            sample = {s: other[s][::args.every] for s in other}
-            swept = fires(candidates, [*stops["dev"], *stops["test"], *sample["dev"], *sample["test"]], threshold)
+            swept = fires(candidates, [i for group in sampled for i in group], threshold)
             for w in candidates:
-                row = [len(swept[w] & {i.key for i in group}) for group in
-                       (stops["dev"], sample["dev"], stops["test"], sample["test"])]
-                lines.append(f"| {threshold:g} | {w} | {pct(row[0], len(stops['dev']))} | {pct(row[1], len(sample['dev']))} | "
-                             f"{pct(row[2], len(stops['test']))} | {pct(row[3], len(sample['test']))} |")
-            every_word = set().union(*swept.values())
-            row = [len(every_word & {i.key for i in group}) for group in
-                   (stops["dev"], sample["dev"], stops["test"], sample["test"])]
-            lines.append(f"| {threshold:g} | all of them | {pct(row[0], len(stops['dev']))} | "
-                         f"{pct(row[1], len(sample['dev']))} | {pct(row[2], len(stops['test']))} | "
-                         f"{pct(row[3], len(sample['test']))} |")
+                lines.append(f"| {threshold:g} | {w} | {cells(swept[w], sampled)} |")
+            lines.append(f"| {threshold:g} | all of them | {cells(set().union(*swept.values()), sampled)} |")
             print(lines[-1], file=sys.stderr, flush=True)
         lines.append("")
     text = "\n".join(lines)
