@@ -245,26 +245,41 @@ class Matcher:
         self.prepare([best.dictionary])
 
         def distance(word: str) -> float:  # to the nearest word of the class; 0 for any dictionary word
-            if word in vocabulary:
-                return 0.0
+            return 0.0 if word in vocabulary else class_distance(word)
+
+        def class_distance(word: str) -> float:  # to the nearest word of the class only
             return min((self.word_distance(word, w, best.dictionary) for w in words | joined_words), default=1.0)
+
+        def longer(first: str, second: str) -> float:
+            """How near ``first`` + ``second`` is to a longer word of the class that ``first`` is the start of, if it is
+            nearer that than ``first`` itself ("back with": "backward"; not "right here": "right"), else 1."""
+            pair = first + second
+            near = min((self.word_distance(pair, w, best.dictionary) for w in words | joined_words
+                        if w != first and w.startswith(first)), default=1.0)
+            return near if near < self.word_distance(pair, first, best.dictionary) else 1.0
 
         heard_words = heard.split()
         second = next((w for w in heard_words if w not in words and w in commands), None)
         if second is not None:
             return f"two commands: heard '{recognition.transcript}', and '{second}' is a {commands[second]} command"
-        i = 0
+        i, taken_alone = 0, False  # whether the word before was taken by itself, not as half of a pair
         while i < len(heard_words):
             word = heard_words[i]
             alone = distance(word)
             joined = distance(word + heard_words[i + 1]) if i + 1 < len(heard_words) else 1.0
             # Whisper split one word in two ("de tenerse" for "detenerse", "clock wise" for "clockwise"): the pair
             # sounds nearer a word of the class than either half; not a stray word before a word of the class
-            # ("Y la la izquierda" for "gire a la izquierda": "yla" is near "la", and "la" alone is nearer)
-            if joined <= limit and joined < alone and (joined < distance(heard_words[i + 1])):
-                i += 2
+            # ("Y la la izquierda" for "gire a la izquierda": "yla" is near "la", and "la" alone is nearer); a pair that
+            # is itself a word of the class is that word, though its second half is a word too ("counter clockwise")
+            pair = word + heard_words[i + 1] if i + 1 < len(heard_words) else ""
+            if joined <= limit and joined < alone and (joined < distance(heard_words[i + 1]) or pair in words):
+                i, taken_alone = i + 2, False
             elif alone <= limit:
-                i += 1
+                i, taken_alone = i + 1, True
+            elif taken_alone and heard_words[i - 1] in words and longer(heard_words[i - 1], word) <= limit:
+                # ... or wrote its first half as a word of the class ("Go back with 10 meters" for "go backward ten
+                # meters"): the second half belongs to the word before it
+                i, taken_alone = i + 1, False
             else:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
