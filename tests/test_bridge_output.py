@@ -222,3 +222,42 @@ def test_a_stale_guess_is_given_up_between_the_engine_stages(tmp_path: Path, whi
     assert not listen._superseded(heard_q, up)
     heard_q.put((up + b"\0\0", 3.0))
     assert listen._superseded(heard_q, up)
+
+
+def test_a_voice_barely_above_the_room_that_was_not_understood_is_told_so(tmp_path: Path) -> None:
+    """Issue 30: in a loud room the pilot can help the recogniser (speak up, or nearer the microphone), so a
+    rejection says how far the voice stood above the room when that was less than ``loud_room_snr_db``; aloud
+    ("too noisy") at most every LOUD_ROOM_REPEAT_S, the low tone alone in between. Real PocketSphinx on espeak-ng
+    speech; the SNR as the segmenter would give it."""
+    from gcs_voice.asr.registry import load_recognizer
+    from gcs_voice.domain.dictionary import load_language
+    from gcs_voice.session import listen
+    from gcs_voice.session.feedback import cue_for, load_phrases
+    from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
+    from tests.asr_speech import pcm_of
+
+    en = load_language("en")
+    bus = EventBus()
+    pipeline = listen.VoicePipeline(load_recognizer("sphinx", [en]), get_matcher(DEFAULT_MATCHER), [en], "en", bus,
+                                    realtime=False, loud_room_snr_db=10.0)
+    other, command = pcm_of("the garden is green today", tmp_path), pcm_of("go up", tmp_path)
+    phrases = load_phrases("en")
+
+    def rejected() -> list:
+        return [e for e in bus.history if e.kind == "rejected"]
+
+    assert pipeline.hear(other, "microphone", utterance_end_t=1.0, snr_db=6.0).action is None
+    first = rejected()[-1]
+    assert first.data["loud_room"] and first.data["say_loud_room"] and "the room is loud" in first.msg, first.msg
+    assert "6 dB above it" in first.msg and cue_for(first, phrases).words == "too noisy"
+    pipeline.hear(other, "microphone", utterance_end_t=2.0, snr_db=4.0)
+    again = rejected()[-1]  # said in the text each time, aloud only every LOUD_ROOM_REPEAT_S
+    assert again.data["loud_room"] and not again.data["say_loud_room"] and cue_for(again, phrases).words == ""
+    pipeline.hear(other, "microphone", utterance_end_t=3.0, snr_db=25.0)
+    assert not rejected()[-1].data["loud_room"] and "loud" not in rejected()[-1].msg
+    pipeline.hear(other, "microphone", utterance_end_t=4.0)  # no room heard (a recording, --say): nothing said of it
+    assert not rejected()[-1].data["loud_room"]
+    assert pipeline.hear(command, "microphone", utterance_end_t=5.0, snr_db=6.0).action == "up"  # understood: no hint
+    assert len(rejected()) == 4
+    heard = [e for e in bus.history if e.kind == "heard"]
+    assert [e.data["snr_db"] for e in heard] == [6.0, 4.0, 25.0, None, 6.0]

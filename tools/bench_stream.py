@@ -46,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 
+from gcs_voice.audio.vad import VAD_SETTINGS_PATH, load_vad_settings
 from tools.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -357,6 +358,68 @@ def pct(n: int, d: int) -> str:
 
 
 @dataclass(frozen=True)
+class HeardLevel:
+    """One utterance: how far the segmenter heard its voice above the room (its first segment's ``snr_db``; None
+    when not segmented or no room was heard before it), how far it truly was (``local_snr_db``), what came of it."""
+
+    heard_db: float | None
+    true_db: float
+    command: bool
+    outcome: str  # right / wrong / missed (commands); acted / ignored (other speech)
+
+
+def heard_levels(rows: list[dict], placed: list[Placed], true_db: list[float]) -> list[HeardLevel]:
+    owner: dict[int | None, list[dict]] = {}
+    for row in rows:
+        owner.setdefault(owner_of(row, placed), []).append(row)
+    out = []
+    for i, p in enumerate(placed):
+        got = owner.get(i, [])
+        heard = next((r["snr_db"] for r in got if r.get("snr_db") is not None), None)
+        acts = [r["action"] for r in got if r.get("action")]
+        if p.clip.action is None:
+            outcome = "acted" if acts else "ignored"
+        else:
+            outcome = "wrong" if any(a != p.clip.action for a in acts) else "right" if acts else "missed"
+        out.append(HeardLevel(heard, true_db[i], p.clip.action is not None, outcome))
+    return out
+
+
+#: the bins of the SNR the segmenter heard, dB (issue 30: what a "the room is loud" hint can go by)
+LEVEL_BINS = (6.0, 10.0, 14.0, 18.0)
+
+
+def levels_report(levels: list[HeardLevel], limit_db: float) -> list[str]:
+    """Commands right and other speech acted on by the SNR the segmenter heard; and how near it was to the truth."""
+    edges = [-np.inf, *LEVEL_BINS, np.inf]
+    names = [f"below {LEVEL_BINS[0]:g}", *(f"{a:g} to {b:g}" for a, b in zip(LEVEL_BINS, LEVEL_BINS[1:])),
+             f"{LEVEL_BINS[-1]:g} and above"]
+    lines = ["| voice over the room, as heard (dB) | commands right | wrong | other speech acted on |",
+             "|---|---|---|---|"]
+    seen = [h for h in levels if h.heard_db is not None]
+    for name, lo, hi in zip(names, edges, edges[1:]):
+        group = [h for h in seen if lo <= h.heard_db < hi]
+        commands = [h for h in group if h.command]
+        others = [h for h in group if not h.command]
+        lines.append(f"| {name} | {pct(sum(h.outcome == 'right' for h in commands), len(commands))} | "
+                     f"{sum(h.outcome == 'wrong' for h in commands)} | "
+                     f"{pct(sum(h.outcome == 'acted' for h in others), len(others))} |")
+    below = [h for h in seen if h.command and h.heard_db < limit_db]
+    above = [h for h in seen if h.command and h.heard_db >= limit_db]
+    error = np.array([h.heard_db - h.true_db for h in seen if np.isfinite(h.true_db)])
+    lines += ["", f"Commands heard less than `loud_room_snr_db` = {limit_db:g} dB above the room (gcs_voice/audio/vad.toml: "
+              "a rejection of such a voice tells the pilot the room is loud): "
+              f"{pct(sum(h.outcome == 'right' for h in below), len(below))} right; at or above it "
+              f"{pct(sum(h.outcome == 'right' for h in above), len(above))}."]
+    if error.size:
+        lines.append(f"The SNR as heard, less the true one (the voiced level over the noise in the utterance's span and "
+                     f"0.5 s either side): median {np.median(error):+.1f} dB, 10th to 90th percentile "
+                     f"{np.percentile(error, 10):+.1f} to {np.percentile(error, 90):+.1f} dB (n = {error.size}; the "
+                     "recordings' own background, which the true figure leaves out, counts as room).")
+    return lines
+
+
+@dataclass(frozen=True)
 class StreamSpec:
     """One stream to build and score: its noise ('none', a NOISE_FILES key or 'mixed'), SNR, level spread, length."""
 
@@ -448,6 +511,7 @@ def main(argv: list[str] | None = None) -> int:
     recordings = load_recordings(split=args.split)
     noise_audio = {name: read_wav(SHARED / "noise" / f) for name, f in NOISE_FILES.items()}
     lines = []
+    levels: list[HeardLevel] = []
     shown_cmd = ""
     for spec in specs:
         pauses_s = spec.pauses or pause_s
@@ -459,7 +523,8 @@ def main(argv: list[str] | None = None) -> int:
             source = list(noise_audio.values()) if spec.noise == "mixed" else noise_audio[spec.noise]
             noise = noise_track(source, speech.size, spec.snr_db, rng, args.noise_change_s)
         x = np.clip(speech + (noise if noise is not None else 0.0), -1, 1)
-        audible = [local_snr_db(speech, noise, pl) >= AUDIBLE_DB for pl in placed]
+        true_db = [local_snr_db(speech, noise, pl) for pl in placed]
+        audible = [db >= AUDIBLE_DB for db in true_db]
         pauses = "" if pause_s == (1.5, 6.0) or spec.pauses else f"_p{pause_s[0]:g}-{pause_s[1]:g}"
         wav = work / (f"stream_{spec.label}_n{n_utt}_s{args.seed}{pauses}"
                       f"{'' if args.split == 'test' else '_' + args.split}.wav")
@@ -467,6 +532,8 @@ def main(argv: list[str] | None = None) -> int:
         write_truth(wav.with_suffix(".tsv"), placed)
         rows, shown_cmd, seconds = recognize(wav, extra, work / "cache")
         c = score(rows, placed, x.size / RATE, audible)
+        if spec.snr_db is not None:
+            levels += heard_levels(rows, placed, true_db)
         wav.with_suffix(".outcomes.tsv").write_text("\n".join(outcomes(rows, placed)) + "\n", encoding="utf-8")
         noise_name = {"none": "none", "mixed": "all four in turn"}.get(spec.noise, NOISE_FILES.get(spec.noise, ""))
         line = (f"| {noise_name} | {pauses_s[0]:g}-{pauses_s[1]:g} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
@@ -512,6 +579,13 @@ def main(argv: list[str] | None = None) -> int:
         "false actions per 5 min | commands right per min | longest deaf stretch s (audible) | run s |",
         "|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|",
         *lines, "",
+        *(["## The voice over the room, as the segmenter heard it", "",
+           "Every utterance of the noisy streams above, by the SNR the segmenter gave its first segment "
+           "(`snr_db` of `gcs-voice recognize --segment --json`: the voiced windows' level over the mean level of "
+           "the last 10 s outside speech, gcs_voice/audio/vad.py `RoomLevel`); utterances never segmented are left "
+           "out.", "", *levels_report(levels, load_vad_settings(
+               Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH).loud_room_snr_db), ""]
+          if levels else []),
     ])
     out = args.out or str(ROOT / "docs" / "bench" / "stream.md")
     if out != "-":

@@ -79,6 +79,8 @@ class HeardUtterance(NamedTuple):
     end_t: float
     #: it began over the bridge's own sound (the microphone was deaf to it): only its end is here
     began_deaf: bool = False
+    #: how far the voice stood above the room, in dB (gcs_voice.audio.vad.Utterance.snr_db)
+    snr_db: float | None = None
 
 
 def _level_db(pcm: bytes) -> float:
@@ -288,4 +290,4 @@ def microphone_utterances(talk: threading.Event | None = None, device: int | str
 
     tentative = ((lambda utt: on_tentative(whole(utt, ear.carrying()))) if on_tentative is not None else None)
     for utterance in segment_utterances(gated(), on_speech=listen, on_tentative=tentative):
-        yield HeardUtterance(whole(utterance, ear.whole), t0[0] + utterance.end_s, ear.began_deaf)
+        yield HeardUtterance(whole(utterance, ear.whole), t0[0] + utterance.end_s, ear.began_deaf, utterance.snr_db)

@@ -31,7 +31,7 @@ import numpy as np
 from gcs_voice.audio import SAMPLE_RATE
 from gcs_voice.audio.sources import AudioChunk
 
-__all__ = ["Utterance", "SpeechListener", "VadSettings", "EnergySettings", "SileroSettings", "load_vad_settings",
+__all__ = ["Utterance", "RoomLevel", "SpeechListener", "VadSettings", "EnergySettings", "SileroSettings", "load_vad_settings",
            "segment_utterances", "frame_dbfs", "SileroVad", "silero_model_path"]
 
 VAD_SETTINGS_PATH = Path(__file__).resolve().parent / "vad.toml"
@@ -47,6 +47,9 @@ class Utterance:
     pcm: bytes
     start_s: float
     end_s: float
+    #: how far the voice stood above the room, in dB (None: no room heard before it): the recogniser's accuracy
+    #: falls with it, and a pilot can do something about it (speak up, or nearer the microphone)
+    snr_db: float | None = None
 
     @property
     def duration_s(self) -> float:
@@ -83,6 +86,8 @@ class VadSettings:
     method: str = "silero"
     min_utterance_s: float = 0.15
     max_utterance_s: float = 8.0
+    #: a voice less than this far above the room, not understood, is told so (gcs_voice.session.listen)
+    loud_room_snr_db: float = 10.0
     energy: EnergySettings = field(default_factory=EnergySettings)
     silero: SileroSettings = field(default_factory=SileroSettings)
 
@@ -113,6 +118,7 @@ def load_vad_settings(path: Path = VAD_SETTINGS_PATH, method: str | None = None)
         raise AudioError(f"unknown VAD method {chosen!r} (silero or energy)")
     return VadSettings(method=chosen, min_utterance_s=float(data.get("min_utterance_s", 0.15)),
                        max_utterance_s=float(data.get("max_utterance_s", 8.0)),
+                       loud_room_snr_db=float(data.get("loud_room_snr_db", 10.0)),
                        energy=_section(EnergySettings, data.get("energy", {}), path),
                        silero=_section(SileroSettings, data.get("silero", {}), path))
 
@@ -210,6 +216,35 @@ class SileroVad:
 #: Told each piece of an utterance while it is still being spoken (PCM), and None when it is over.
 SpeechListener = Callable[[bytes | None], None]
 
+#: the room is the audio outside speech over about this long (windows the detector does not call speech)
+ROOM_S = 10.0
+#: below this mean square (-90 dBFS) audio is digital silence (push-to-talk released, the bridge's own sound
+#: muted out): no room at all, not a quiet one
+DIGITAL_SILENCE = 1e-9
+
+
+class RoomLevel:
+    """The level of the room (the audio outside speech, lately) and of a voice over it: the utterance's SNR."""
+
+    def __init__(self, window_s: float) -> None:
+        self.powers: deque[float] = deque(maxlen=max(1, round(ROOM_S / window_s)))
+
+    def hear(self, power: float) -> None:
+        """One window outside speech, by its mean square."""
+        if power > DIGITAL_SILENCE:
+            self.powers.append(power)
+
+    def snr_db(self, speech_power: float) -> float | None:
+        """How far a voice of mean square ``speech_power`` (the room included) stands above the room, in dB."""
+        if not self.powers:
+            return None
+        room = float(np.mean(self.powers))
+        return round(10.0 * float(np.log10(max(speech_power - room, room * 1e-3) / room)), 1)
+
+
+def _power(window: np.ndarray) -> float:
+    return float(np.mean(np.square(window, dtype=np.float64)))
+
 
 def segment_utterances(chunks: Iterable[AudioChunk], settings: VadSettings | None = None,
                        on_speech: SpeechListener | None = None,
@@ -264,29 +299,36 @@ def _silero_segments(chunks: Iterable[AudioChunk], s: VadSettings, vad: SileroVa
     speech: list[bytes] = []
     start_i = 0  # index of the utterance's first window (pre-roll included)
     voiced = 0  # windows at or above the end threshold in this utterance
+    voiced_power = 0.0  # their mean squares, summed
     silent_run = 0
     in_utt = False
+    room = RoomLevel(win_s)
 
     def emit(frames: list[bytes], first: int) -> Utterance | None:
         pcm = b"".join(frames)
         if voiced < min_speech_windows or len(pcm) / 2 / SAMPLE_RATE < s.min_utterance_s:
             return None
-        return Utterance(pcm, first * win_s, first * win_s + len(pcm) / 2 / SAMPLE_RATE)
+        return Utterance(pcm, first * win_s, first * win_s + len(pcm) / 2 / SAMPLE_RATE,
+                         room.snr_db(voiced_power / voiced))
 
     for i, window in enumerate(_windows(chunks, SILERO_WINDOW * 2)):
-        prob = vad.probability(np.frombuffer(window, "<i2").astype(np.float32) / 32768.0)
+        samples = np.frombuffer(window, "<i2").astype(np.float32) / 32768.0
+        prob = vad.probability(samples)
         history.append(window)
         lead.append(window)
         if not in_utt:
             if prob >= p.start_threshold:
-                in_utt, speech, voiced, silent_run = True, list(history), 1, 0
+                in_utt, speech, voiced, voiced_power, silent_run = True, list(history), 1, _power(samples), 0
                 start_i = i - len(history) + 1
                 listen(b"".join(lead))
+            elif prob < p.end_threshold:
+                room.hear(_power(samples))
             continue
         speech.append(window)
         listen(window)
         if prob >= p.end_threshold:
             voiced += 1
+            voiced_power += _power(samples)
             silent_run = 0
         else:
             silent_run += 1
@@ -322,12 +364,15 @@ def _energy_segments(chunks: Iterable[AudioChunk], s: VadSettings, listen: Speec
     in_utt, voiced_run, silent_run, start_s = False, 0, 0, 0.0
     pending = b""
     t_frames = 0  # frames seen so far
+    room, voiced_powers = RoomLevel(e.frame_s), [0.0]
 
     def emit(frames: list[bytes], start: float) -> Utterance | None:
         pcm = b"".join(frames)
         if len(pcm) / 2 / SAMPLE_RATE < s.min_utterance_s:
             return None
-        return Utterance(pcm, start, start + len(pcm) / 2 / SAMPLE_RATE)
+        voiced_frames = [power for power in voiced_powers if power > 0]
+        return Utterance(pcm, start, start + len(pcm) / 2 / SAMPLE_RATE,
+                         room.snr_db(float(np.mean(voiced_frames))) if voiced_frames else None)
 
     for chunk in chunks:
         pending += chunk.pcm
@@ -337,15 +382,18 @@ def _energy_segments(chunks: Iterable[AudioChunk], s: VadSettings, listen: Speec
             if noise_dbfs is None:
                 noise_dbfs = min(level, e.min_speech_dbfs)
             voiced = level > max(e.min_speech_dbfs, noise_dbfs + e.noise_margin_db)
+            power = 10 ** (level / 10)
             if not voiced:
                 noise_dbfs += e.noise_adapt * (level - noise_dbfs)
+                if not in_utt:
+                    room.hear(power)
             t_s = t_frames * e.frame_s
             t_frames += 1
             if not in_utt:
                 pre_roll.append(frame)
                 voiced_run = voiced_run + 1 if voiced else 0
                 if voiced_run >= start_frames:
-                    in_utt, silent_run = True, 0
+                    in_utt, silent_run, voiced_powers = True, 0, []
                     speech = list(pre_roll)
                     start_s = max(0.0, t_s + e.frame_s - len(speech) * e.frame_s)
                     pre_roll.clear()
@@ -354,6 +402,8 @@ def _energy_segments(chunks: Iterable[AudioChunk], s: VadSettings, listen: Speec
             speech.append(frame)
             listen(frame)
             silent_run = 0 if voiced else silent_run + 1
+            if voiced:
+                voiced_powers.append(power)
             if silent_run >= hang_frames or len(speech) >= max_frames:
                 keep = speech[: len(speech) - silent_run + min(silent_run, hang_frames // 2)]
                 utt = emit(keep, start_s)

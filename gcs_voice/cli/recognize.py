@@ -86,6 +86,8 @@ def _format_line(row: dict) -> str:
     action = row["action"] or "none"
     phrase = f"'{row['phrase']}'" if row["phrase"] else "-"
     where = f" [{row['start_s']:.2f}-{row['end_s']:.2f} s]" if "start_s" in row else ""
+    if row.get("snr_db") is not None:
+        where += f" (voice {row['snr_db']:.0f} dB over the room)"
     reason = f" ({row['reason']})" if row["reason"] and not row["action"] else ""
     heard = row.get("transcript") or row["text"]  # what the engine wrote, not the phrase it scored best
     return (f"{row['file']}{where}: heard '{heard}' -> {phrase} -> {action}{reason} "
@@ -123,9 +125,9 @@ def run(args: argparse.Namespace) -> int:
     stream_lang = None if args.lang == "auto" or args.dictionary else args.lang
 
     for name, pcm in inputs:
-        pieces = ([(u.pcm, u.start_s, u.end_s) for u in segment_utterances(pcm_to_chunks(pcm), vad)]
-                  if args.segment else [(pcm, None, None)])
-        for piece, start_s, end_s in pieces:
+        pieces = ([(u.pcm, u.start_s, u.end_s, u.snr_db) for u in segment_utterances(pcm_to_chunks(pcm), vad)]
+                  if args.segment else [(pcm, None, None, None)])
+        for piece, start_s, end_s, snr_db in pieces:
             started = time.perf_counter()
             stream = recognizer.start_stream(stream_lang)
             stream.accept(piece)
@@ -144,6 +146,6 @@ def run(args: argparse.Namespace) -> int:
             if recognition.transcript:
                 row["transcript"] = recognition.transcript
             if start_s is not None:
-                row.update(start_s=round(start_s, 3), end_s=round(end_s, 3))
+                row.update(start_s=round(start_s, 3), end_s=round(end_s, 3), snr_db=snr_db)
             print(json.dumps(row, ensure_ascii=False) if args.json else _format_line(row), flush=True)
     return 0

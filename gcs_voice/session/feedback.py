@@ -135,7 +135,7 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     if missing:
         raise GcsVoiceError(f"{path}: [actions] has no phrase for {', '.join(missing)}")
     needed = ("not_understood", "refused", "link_lost", "link_restored", "mode", "waiting", "battery",
-              "take_off_failed", "error", "collision", "takeover")
+              "take_off_failed", "error", "collision", "takeover", "loud_room")
     missing = [k for k in needed if k not in tables["said"]]
     if missing:
         raise GcsVoiceError(f"{path}: [said] has no phrase for {', '.join(missing)}")
@@ -177,6 +177,8 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
             return None  # the session's own end: the pilot ended it
         return Cue("doing", phrases.actions.get(str(d.get("action")), ""), decision=True, stale_s=STALE_S)
     if event.kind == "rejected":
+        if d.get("say_loud_room"):  # the voice was barely above the room: the pilot can help it
+            return Cue("not_understood", said["loud_room"], decision=True, stale_s=STALE_S)
         return Cue("not_understood", said["not_understood"], decision=True, stale_s=STALE_S)
     if event.kind == "refused":
         reason = phrases.reason(str(d.get("reason", "")))

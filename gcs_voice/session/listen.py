@@ -31,6 +31,7 @@ from typing import TYPE_CHECKING, Any
 
 from gcs_voice.asr.base import Abandoned, BufferedStream
 from gcs_voice.audio.microphone import HeardUtterance
+from gcs_voice.audio.vad import load_vad_settings
 from gcs_voice.audio.sources import pcm_to_chunks
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.session.bridge import PAUSE, RESUME, STAY, Bridge, Request
@@ -56,6 +57,8 @@ STOP_WAIT_S = 1.0
 REPEAT_OVER_VOICE_S = 3.0
 #: how long a script waits for its take-off or landing to end before it goes on
 OPERATION_WAIT_S = 60.0
+#: the pilot is told aloud that the room is loud at most this often (the rejection's text says it every time)
+LOUD_ROOM_REPEAT_S = 30.0
 
 
 class StopPath:
@@ -157,7 +160,8 @@ class VoicePipeline:
 
     def __init__(self, recognizer: Recognizer, matcher: Matcher, dictionaries: Sequence[Dictionary],
                  lang: str | None, bus: EventBus, realtime: bool = True,
-                 stop_spotter: StopSpotter | None = None, pause_while_deciding: bool = True) -> None:
+                 stop_spotter: StopSpotter | None = None, pause_while_deciding: bool = True,
+                 loud_room_snr_db: float | None = None) -> None:
         self.recognizer = recognizer
         #: hold a moving vehicle from the end of each utterance to its decision (see the module's docstring)
         self.pause_while_deciding = pause_while_deciding
@@ -176,6 +180,9 @@ class VoicePipeline:
         self._speculated: tuple[bytes, Recognition] | None = None
         #: speculations given up half-way because their utterance went on (``speculate(stale=...)``)
         self.abandoned = 0
+        #: a rejected voice less than this far above the room is told that the room is loud (vad.toml)
+        self.loud_room_snr_db = load_vad_settings().loud_room_snr_db if loud_room_snr_db is None else loud_room_snr_db
+        self._loud_room_said_t = -float("inf")
 
     def pause_motion(self, bridge: Bridge, utterance_end_t: float | None = None) -> None:
         """An utterance has ended: hold a moving vehicle until it is decided (the bridge ignores it otherwise)."""
@@ -232,12 +239,15 @@ class VoicePipeline:
         self._speculated = (pcm, recognition)
 
     def hear(self, pcm: bytes, source: str, utterance_end_t: float | None = None,
-             recorded: bool = False, bridge: Bridge | None = None, began_deaf: bool = False) -> Decision:
+             recorded: bool = False, bridge: Bridge | None = None, began_deaf: bool = False,
+             snr_db: float | None = None) -> Decision:
         """Recognise and decide one utterance; ``recorded`` PCM is fed chunk by chunk (real time if set).
 
         With a ``bridge``, recorded audio also goes through the stop spotter as it is fed (the
         microphone's is spotted by the ear thread as it is spoken). An utterance that ``began_deaf`` (the pilot
         was speaking as the bridge's own sound ended: only its end was heard) is acted on only if it is a stop.
+        ``snr_db``: how far the voice stood above the room (the segmenter's); a rejection of a voice less than
+        ``loud_room_snr_db`` above it says so, since the pilot can help it (speak up, or nearer the microphone).
         """
         spot = self.stop_path if recorded and bridge is not None else None
         speculated, self._speculated = self._speculated, None
@@ -277,7 +287,7 @@ class VoicePipeline:
                       text=recognition.text, transcript=recognition.transcript, alternatives=alternatives,
                       engine=recognition.engine, lang=recognition.lang, audio_s=round(recognition.audio_s, 3), source=source,
                       utterance_end_t=end_t, recognize_ms=round((heard_t - end_t) * 1000, 1),
-                      speculated=early is not None)
+                      speculated=early is not None, snr_db=snr_db)
         decision = self.matcher.decide(recognition, self.dictionaries)
         if began_deaf and decision.accepted and decision.action != "stop":
             decision = replace(decision, action=None, amount=None,
@@ -289,18 +299,25 @@ class VoicePipeline:
                           f"({decision.action or 'no action'}; the recogniser or the CPU is slow)",
                           late_s=round(late_s, 2), action=decision.action, source=source, utterance_end_t=end_t)
         if not decision.accepted:
-            self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}",
+            loud = snr_db is not None and snr_db < self.loud_room_snr_db
+            hint = (f" (the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone)"
+                    if loud else "")
+            say_loud = loud and time.time() - self._loud_room_said_t >= LOUD_ROOM_REPEAT_S
+            if say_loud:
+                self._loud_room_said_t = time.time()
+            self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}{hint}",
                           text=decision.text, phrase=decision.phrase, score=round(decision.score, 3),
                           reason=decision.reason, matcher=decision.matcher, source=source,
-                          utterance_end_t=end_t, decided_t=time.time())
+                          utterance_end_t=end_t, decided_t=time.time(), snr_db=snr_db, loud_room=loud,
+                          say_loud_room=say_loud)
         return decision
 
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,
                recorded: bool = False, more_waiting: Callable[[], bool] | None = None,
-               began_deaf: bool = False) -> Request | None:
+               began_deaf: bool = False, snr_db: float | None = None) -> Request | None:
         """Hear one utterance and hand an accepted action to the bridge (None when rejected: then the paused
         motion resumes, unless ``more_waiting`` says another utterance waits for its decision)."""
-        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge, began_deaf)
+        decision = self.hear(pcm, source, utterance_end_t, recorded, bridge, began_deaf, snr_db)
         if not decision.accepted:
             self.settle_pause(bridge, decision, more_waiting is not None and more_waiting())
             return None
@@ -365,7 +382,7 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
     to end is recognised while its closing silence runs out (when nothing else waits), and its
     decision is taken at once if it does end that way.
     """
-    heard: queue.Queue[tuple[bytes, float, bool] | _Tentative | BaseException | None] = queue.Queue()
+    heard: queue.Queue[tuple[bytes, float, bool, float | None] | _Tentative | BaseException | None] = queue.Queue()
     if tentatives is not None:
         def tentative(pcm: bytes) -> None:
             pipeline.pause_motion(bridge)  # the speech has ended (the first sign of it): hold until decided
@@ -378,13 +395,14 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             for utterance in utterances:
                 pcm, end_t = utterance[0], utterance[1]
                 began_deaf = isinstance(utterance, HeardUtterance) and utterance.began_deaf
+                snr_db = utterance.snr_db if isinstance(utterance, HeardUtterance) else None
                 if bridge.finished:
                     break
                 pipeline.pause_motion(bridge, end_t)  # (already paused by its tentative one, if any)
                 if pipeline.stop_path is not None and not spotted_while_spoken:
                     pipeline.stop_path.feed(bridge, pcm)
                     pipeline.stop_path.end(bridge, end_t)
-                heard.put((pcm, end_t, began_deaf))
+                heard.put((pcm, end_t, began_deaf, snr_db))
         except BaseException as exc:  # noqa: BLE001 - handed to the voice thread, which ends the session
             heard.put(exc)
         finally:
@@ -401,9 +419,9 @@ def run_microphone(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable
             if heard.empty():  # a real utterance waiting comes first; a stale guess is skipped
                 pipeline.speculate(item.pcm, stale=lambda pcm=item.pcm: _superseded(heard, pcm))
             continue
-        pcm, end_t, began_deaf = item
+        pcm, end_t, began_deaf, snr_db = item
         pipeline.submit(bridge, pcm, "microphone", end_t, more_waiting=lambda: not heard.empty(),
-                        began_deaf=began_deaf)
+                        began_deaf=began_deaf, snr_db=snr_db)
 
 
 def run_recording(pipeline: VoicePipeline, bridge: Bridge, utterances: Iterable[HeardUtterance | tuple[bytes, float]],
