@@ -261,3 +261,12 @@ def test_a_voice_barely_above_the_room_that_was_not_understood_is_told_so(tmp_pa
     assert len(rejected()) == 4
     heard = [e for e in bus.history if e.kind == "heard"]
     assert [e.data["snr_db"] for e in heard] == [6.0, 4.0, 25.0, None, 6.0]
+    # and the pilot's screen says it beside the reason
+    from rich.console import Console
+
+    state = ViewState()
+    for event in bus.history:
+        state(event)
+    console = Console(width=200, record=True, file=io.StringIO())
+    console.print(render(state, {"link": "ok"}))
+    assert "the room is loud: the voice was 4 dB above it; speak up, or nearer the microphone" in console.export_text()

@@ -300,16 +300,16 @@ class VoicePipeline:
                           late_s=round(late_s, 2), action=decision.action, source=source, utterance_end_t=end_t)
         if not decision.accepted:
             loud = snr_db is not None and snr_db < self.loud_room_snr_db
-            hint = (f" (the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone)"
+            hint = (f"the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone"
                     if loud else "")
             say_loud = loud and time.time() - self._loud_room_said_t >= LOUD_ROOM_REPEAT_S
             if say_loud:
                 self._loud_room_said_t = time.time()
-            self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}{hint}",
+            self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}{f' ({hint})' if hint else ''}",
                           text=decision.text, phrase=decision.phrase, score=round(decision.score, 3),
                           reason=decision.reason, matcher=decision.matcher, source=source,
                           utterance_end_t=end_t, decided_t=time.time(), snr_db=snr_db, loud_room=loud,
-                          say_loud_room=say_loud)
+                          say_loud_room=say_loud, hint=hint)
         return decision
 
     def submit(self, bridge: Bridge, pcm: bytes, source: str, utterance_end_t: float | None = None,

@@ -114,7 +114,8 @@ def render(state: ViewState, status: dict[str, Any], listening: str = "") -> Any
     rej.add_column(style="dim")
     rej.add_column()
     for r in rejected:
-        rej.add_row(_clock(r["t"]), Text(f"\"{r.get('text', '')}\" - {r.get('reason', '')}", style="yellow"))
+        hint = f" ({r['hint']})" if r.get("hint") else ""  # a loud room: the pilot can help (listen.VoicePipeline.hear)
+        rej.add_row(_clock(r["t"]), Text(f"\"{r.get('text', '')}\" - {r.get('reason', '')}{hint}", style="yellow"))
     warn = Table.grid(padding=(0, 1))
     warn.add_column(style="dim")
     warn.add_column()
