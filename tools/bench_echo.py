@@ -122,7 +122,7 @@ def every_cue(lang: str = "en") -> list[tuple[str, str]]:
     warnings += [p.said["waiting"].format(what=w) for w in p.waiting.values()]
     cues += [("warning", words) for words in dict.fromkeys(warnings)]
     cues += [("refused", f"{p.said['refused']}, {r}") for r in dict.fromkeys(p.reasons.values())]
-    return cues + [("not_understood", "")]
+    return cues + [("not_understood", ""), ("not_understood", p.said["loud_room"])]
 
 
 def main(argv: list[str] | None = None) -> int:

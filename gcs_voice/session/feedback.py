@@ -315,7 +315,7 @@ class Feedback:
             try:
                 refusals = [f"{p.said['refused']}, {why}" for why in p.reasons.values()]
                 for words in (*p.actions.values(), *refusals, *p.reasons.values(), p.said["link_lost"],
-                              p.said["link_restored"], p.said["battery"]):
+                              p.said["link_restored"], p.said["battery"], p.said["loud_room"]):
                     speech.say(words)
             except AudioError as exc:
                 self.bus.emit("warning", f"feedback: {exc}; tones only", source="feedback")
