@@ -154,12 +154,17 @@ def main(argv: list[str] | None = None) -> int:
                              "anywhere in the microphone's blocks: stops fired with and without the canceller's "
                              "word on its own echo's remains")
     parser.add_argument("--alignment-cues", default="going left;going down;fence reached")
+    parser.add_argument("--langs", default="en",
+                        help="the session's languages: the stop spotter's words and the cues said alone (en,es: a "
+                             "--lang auto session, whose Spanish cues the English stop words hear too)")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     args = parser.parse_args(argv)
 
-    spotter = load_stop_spotter(["en"])
+    langs = [lang for lang in args.langs.split(",") if lang]
+    spotter = load_stop_spotter(langs)
     strict = [float(v) for v in args.over_voice_thresholds.split(",")] if args.over_voice_thresholds else [None]
-    over_voice = [load_stop_spotter(["en"], over_voice_thresholds=None if t is None else {"en": t}) for t in strict]
+    over_voice = [load_stop_spotter(langs, over_voice_thresholds=None if t is None else {lang: t for lang in langs})
+                  for t in strict]
     s = load_sound_settings()
     settings = ([dict((k, float(v)) for k, v in (kv.split("=") for kv in group.split(";"))) for group in args.cancel.split(",")]
                 if args.cancel else [s.echo_cancel or {}])
@@ -227,16 +232,20 @@ def main(argv: list[str] | None = None) -> int:
     # Every cue, played in a new order each round into the same room (one canceller for the whole session, as
     # live), over a quiet room's floor (-64 dBFS of white noise); the cue's voiced level is the pilot's.
     rng = np.random.default_rng(1)
-    cues = every_cue()
+    from gcs_voice.session.feedback import load_phrases
+
+    cues = [(lang, tone_name, cue_words) for lang in langs for tone_name, cue_words in every_cue(lang)]
+    voices = {lang: Speech(load_phrases(lang).voice, s.speed_wpm) for lang in langs}
     pilot_dbfs = float(np.median([voiced_dbfs(x) for x in alone])) if alone else -26.0
     rendered = []
-    for tone_name, cue_words in cues:
+    for lang, tone_name, cue_words in cues:
         pcm = tone(s.tones[tone_name], s.amplitude, s.fade_s)
         if cue_words:
-            pcm += bytes(int(0.05 * RATE) * 2) + Speech("en-us", s.speed_wpm).say(cue_words)
+            pcm += bytes(int(0.05 * RATE) * 2) + voices[lang].say(cue_words)
         x = np.frombuffer(pcm, "<i2").astype(np.float64)
         rendered.append(x * 10 ** ((pilot_dbfs - voiced_dbfs(x)) / 20))
     false_stops = [0] * ((1 + len(settings)) * len(over_voice))
+    fired_on: dict[str, int] = {}  # the cues the spotter fired on over the bridge's voice (cancelled, first threshold)
     cancellers = [EchoCanceller(**c) for c in settings]
     for _round in range(args.rounds):
         for i in rng.permutation(len(rendered)):
@@ -252,7 +261,11 @@ def main(argv: list[str] | None = None) -> int:
                 outs.append(Cancelled(canceller, mic, reference))
             for k, over in enumerate(over_voice):
                 for j, out in enumerate(outs):
-                    false_stops[k * len(outs) + j] += spotted(out, over)
+                    fired = spotted(out, over)
+                    false_stops[k * len(outs) + j] += fired
+                    if fired and k == 0 and j == 1:
+                        said = f"{cues[i][0]}: {cues[i][2] or '(' + cues[i][1] + ' tone)'}"
+                        fired_on[said] = fired_on.get(said, 0) + 1
     played = args.rounds * len(rendered)
     aligned: list[str] = []
     if args.alignments:
@@ -288,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
                + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")
                + (f" --alignments {args.alignments} --alignment-cues '{args.alignment_cues}'" if args.alignments
                   else "")
+               + (f" --langs {args.langs}" if langs != ["en"] else "")
                + (f" --out {args.out}" if args.out else ""))
     path = (f"reverberated by a statistical room (RT60 {args.rt60:g} s, direct-to-reverberant {args.drr_db:g} dB, "
             "`room_response` in the tool)" if args.rt60 > 0 else "the direct path only, no room")
@@ -315,8 +329,9 @@ def main(argv: list[str] | None = None) -> int:
         "| --- | " + " | ".join("---" for _ in labels) + " |",
         *rows,
         "",
-        f"The bridge's own cues alone, no pilot: every cue it can play in English ({len(rendered)}: the actions, "
-        f"warnings, reasons and refusals of gcs_voice/data/feedback/en.toml, each after its tone), {args.rounds} "
+        f"The bridge's own cues alone, no pilot: every cue it can play in {' and '.join(langs)} ({len(rendered)}: the "
+        f"actions, warnings, reasons and refusals of gcs_voice/data/feedback/<lang>.toml, each after its tone, in the "
+        f"language's espeak-ng voice; the stop spotter with the words of {' and '.join(langs)}), {args.rounds} "
         "rounds in a new order each, through the same room at the pilot's voiced level over a quiet room's floor, "
         "one canceller for the whole run as in a session: how often the stop spotter fires on them (a stop for "
         "nothing).",
@@ -325,6 +340,8 @@ def main(argv: list[str] | None = None) -> int:
         "| --- | " + " | ".join("---" for _ in false_labels) + " |",
         false_row,
         "",
+        *([f"Cues the spotter fired on (cancelled): " + "; ".join(f"{k} ({v})" for k, v in sorted(fired_on.items())), ""]
+          if fired_on else []),
         *aligned,
     ])
     print(report)
