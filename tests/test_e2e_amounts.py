@@ -30,6 +30,9 @@ def test_bounded_motions_fly_the_amount_said(autopilot: str, tmp_path: Path, whi
     commands = result.commands()
     assert [(c["action"], c.get("amount")) for c in commands] == [("go_forward", "3 m"), ("turn_left", "45°")], \
         [e["msg"] for e in result.events]
+    # what the feedback says back ("going forward, 3 metres": tests/test_feedback.py) is the amount as said
+    assert [c.get("said_amount") for c in commands] == [{"value": 3, "unit": "m", "height": False, "label": "3 m"},
+                                                        {"value": 45, "unit": "deg", "height": False, "label": "45°"}]
     flight = result.flight()
     t_fwd, t_turn = (c["sent_t"] for c in commands)
     # the forward leg ended by itself: stopped before the turn was said, 3 m along the heading

@@ -56,6 +56,24 @@ def test_a_phrase_file_without_an_action_is_one_line_naming_it(tmp_path: Path) -
         load_phrases("en", tmp_path)
 
 
+def test_a_motion_with_an_amount_is_said_back_with_it() -> None:
+    """Issue 33, item 5: the pilot hears the amount taken ("going forward, 3 metres"), so a misheard amount is
+    caught at once without looking; a plain motion and a return home (its distance is no amount said) are said
+    as before."""
+    en, es = load_phrases("en"), load_phrases("es")
+
+    def said(phrases, action: str, amount: dict | None) -> str:
+        return cue_for(_event("command", action=action, origin="voice", said_amount=amount), phrases).words
+
+    assert said(en, "go_forward", {"value": 3, "unit": "m", "height": False}) == "going forward, 3 metres"
+    assert said(en, "turn_left", {"value": 45, "unit": "deg", "height": False}) == "turning left, 45 degrees"
+    assert said(en, "up", {"value": 5, "unit": "m", "height": True}) == "going up, to 5 metres"
+    assert said(es, "go_left", {"value": 2, "unit": "m", "height": False}) == "a la izquierda, 2 metros"
+    assert said(es, "down", {"value": 1, "unit": "m", "height": True}) == "bajando, a 1 metro"
+    assert said(en, "go_back", {"value": 1, "unit": "m", "height": False}) == "going back, 1 metre"
+    assert said(en, "go_forward", None) == "going forward" and said(en, "return_home", None) == "going home"
+
+
 def test_each_event_has_the_cue_a_pilot_needs() -> None:
     en, es = load_phrases("en"), load_phrases("es")
     assert cue_for(_event("command", action="go_left", origin="voice"), en) == Cue("doing", "going left", True, 2.5)

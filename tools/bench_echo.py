@@ -116,6 +116,12 @@ def every_cue(lang: str = "en") -> list[tuple[str, str]]:
 
     p = load_phrases(lang)
     cues = [("doing", words) for words in p.actions.values()]
+    # a motion with an amount is said back with it (issue 33): one of each kind, numbers short and long
+    said = {"go_forward": (3, "m", False), "go_back": (12, "m", False), "go_right": (20, "m", False),
+            "go_left": (7, "m", False), "up": (5, "m", True), "down": (2, "m", False), "turn_right": (45, "deg", False),
+            "turn_left": (180, "deg", False)}
+    cues += [("doing", f"{p.actions[a]}, {p.amount({'value': n, 'unit': u, 'height': h})}")
+             for a, (n, u, h) in said.items() if p.amount({"value": n, "unit": u, "height": h})]
     warnings = [p.said[k] for k in ("link_lost", "link_restored", "takeover", "battery", "take_off_failed", "error",
                                     "collision")]
     warnings += [p.mode(m) for m in ("RTL", "LAND", "BRAKE", "LOITER")] + list(p.reasons.values())

@@ -344,6 +344,7 @@ class Bridge:
             + (f" (score {d.score:.2f})" if d else f" ({request.origin})"),
             action=action, phrase=d.phrase if d else None, score=round(d.score, 3) if d else None,
             amount=mapped.amount or None, origin=request.origin, yaw_target_deg=round_deg(mapped.yaw_target_deg, 1),
+            said_amount=d.amount.to_dict() if d and d.amount and mapped.amount else None,
             setpoint=None if setpoint is None else {
                 "forward_m_s": setpoint.forward_m_s, "right_m_s": setpoint.right_m_s,
                 "down_m_s": setpoint.down_m_s, "yaw_deg": round_deg(setpoint.yaw_deg, 2)},

@@ -22,7 +22,7 @@ import threading
 import time
 import tomllib
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -83,9 +83,21 @@ class Phrases:
     waiting: dict[str, str]
     #: mode names said otherwise (a mode called like a stop word: PX4's HOLD)
     modes: dict[str, str]
+    #: how an amount said with a motion is said back ("{n} metres", "{n} degrees", "to {n} metres")
+    amounts: dict[str, str] = field(default_factory=dict)
 
     def mode(self, name: str) -> str:
         return self.said["mode"].format(mode=self.modes.get(name.upper(), name))
+
+    def amount(self, said: dict[str, Any] | None) -> str:
+        """An amount said with a motion, as said back (issue 33: the pilot hears "going forward, 3 metres", and a
+        misheard amount is caught at once); "" when none was said or the language has no words for it."""
+        if not said:
+            return ""
+        key = "height" if said.get("height") else {"m": "metres", "deg": "degrees"}.get(str(said.get("unit")), "")
+        if said.get("value") == 1 and f"{key}_one" in self.amounts:  # "1 metre", "a 1 metro"
+            key = f"{key}_one"
+        return self.amounts.get(key, "").format(n=said.get("value"))
 
     def reason(self, text: str) -> str:
         """The words for a refusal's or a limit's reason: the vehicle's other mode, else the first match."""
@@ -126,8 +138,8 @@ def load_phrases(language: str, folder: Path = FEEDBACK_DIR) -> Phrases:
     path = folder / f"{language}.toml"
     data = _load(path)
     tables = {}
-    for name in ("actions", "said", "reasons", "waiting", "modes"):
-        table = data.get(name, {} if name == "modes" else None)
+    for name in ("actions", "said", "reasons", "waiting", "modes", "amounts"):
+        table = data.get(name, {} if name in ("modes", "amounts") else None)
         if not isinstance(table, dict) or not all(isinstance(v, str) for v in table.values()):
             raise GcsVoiceError(f"{path}: [{name}] must be a table of strings")
         tables[name] = dict(table)
@@ -175,7 +187,9 @@ def cue_for(event: Event, phrases: Phrases) -> Cue | None:
     if event.kind == "command":
         if d.get("origin") == "shutdown":
             return None  # the session's own end: the pilot ended it
-        return Cue("doing", phrases.actions.get(str(d.get("action")), ""), decision=True, stale_s=STALE_S)
+        words = phrases.actions.get(str(d.get("action")), "")
+        amount = phrases.amount(d.get("said_amount"))
+        return Cue("doing", f"{words}, {amount}" if words and amount else words, decision=True, stale_s=STALE_S)
     if event.kind == "rejected":
         if d.get("say_loud_room"):  # the voice was barely above the room: the pilot can help it
             return Cue("not_understood", said["loud_room"], decision=True, stale_s=STALE_S)
