@@ -182,7 +182,7 @@ def test_speech_longer_than_any_command_scores_no_phrase(whisper_score, tmp_path
                                                      tmp_path), "en")
     assert result.extra["transcript_cut"] == 1.0, result.transcript
     assert not result.hypotheses
-    assert decision.action is None and "went on" in decision.reason, decision
+    assert decision.action is None and "went on" in decision.reason and decision.went_on, decision
 
 
 @pytest.mark.slow

@@ -241,11 +241,16 @@ def test_a_voice_barely_above_the_room_that_was_not_understood_is_told_so(tmp_pa
     pipeline = listen.VoicePipeline(load_recognizer("sphinx", [en]), get_matcher(DEFAULT_MATCHER), [en], "en", bus,
                                     realtime=False, loud_room_snr_db=10.0)
     other, command = pcm_of("the garden is green today", tmp_path), pcm_of("go up", tmp_path)
+    talk = pcm_of("go up and then the garden is green today", tmp_path)
     phrases = load_phrases("en")
 
     def rejected() -> list:
         return [e for e in bus.history if e.kind == "rejected"]
 
+    # talk that went on past a command's words is not asked to speak up, and does not use up the spoken hint
+    assert pipeline.hear(talk, "microphone", utterance_end_t=0.5, snr_db=5.0).action is None
+    assert rejected()[-1].data["loud_room"] and not rejected()[-1].data["hint"], rejected()[-1].msg
+    assert not rejected()[-1].data["say_loud_room"] and "loud" not in rejected()[-1].msg
     assert pipeline.hear(other, "microphone", utterance_end_t=1.0, snr_db=6.0).action is None
     first = rejected()[-1]
     assert first.data["loud_room"] and first.data["say_loud_room"] and "the room is loud" in first.msg, first.msg
@@ -258,9 +263,9 @@ def test_a_voice_barely_above_the_room_that_was_not_understood_is_told_so(tmp_pa
     pipeline.hear(other, "microphone", utterance_end_t=4.0)  # no room heard (a recording, --say): nothing said of it
     assert not rejected()[-1].data["loud_room"]
     assert pipeline.hear(command, "microphone", utterance_end_t=5.0, snr_db=6.0).action == "up"  # understood: no hint
-    assert len(rejected()) == 4
+    assert len(rejected()) == 5
     heard = [e for e in bus.history if e.kind == "heard"]
-    assert [e.data["snr_db"] for e in heard] == [6.0, 4.0, 25.0, None, 6.0]
+    assert [e.data["snr_db"] for e in heard] == [5.0, 6.0, 4.0, 25.0, None, 6.0]
     # and the pilot's screen says it beside the reason
     from rich.console import Console
 

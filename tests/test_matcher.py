@@ -263,7 +263,7 @@ def test_speech_that_went_on_past_the_free_pass_does_nothing() -> None:
     cut = _scored("go right", "Go right and then go", 0.0)
     cut.extra["transcript_cut"] = 1.0
     decision = get_matcher("phonetic").decide(cut, [EN])
-    assert decision.action is None and "went on" in decision.reason, decision
+    assert decision.action is None and "went on" in decision.reason and decision.went_on, decision
     ended = _scored("go right", "Go right", 0.0)
     ended.extra["transcript_cut"] = 0.0
     assert get_matcher("phonetic").decide(ended, [EN]).action == "go_right"

@@ -47,6 +47,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_voice.audio.vad import VAD_SETTINGS_PATH, load_vad_settings
+from gcs_voice.session.listen import LOUD_ROOM_REPEAT_S, loud_room_hint
 from tools.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -419,6 +420,45 @@ def levels_report(levels: list[HeardLevel], limit_db: float) -> list[str]:
     return lines
 
 
+#: what was said, in the order the hint's table gives it
+KINDS = {"command": "commands", "word": "non-command words", "sentence": "sentences", "noise": "noise alone"}
+
+
+def hint_tally(rows: list[dict], placed: list[Placed], limit_db: float, repeat_s: float) -> dict[tuple[str, str], int]:
+    """Rejected segments whose voice stood less than ``limit_db`` above the room, by what was said: how many
+    (``loud``), how many the pilot is told the room is loud (``hint``: gcs_voice.session.listen.loud_room_hint), and
+    how many of those it says aloud (``said``: at most every ``repeat_s`` of the stream)."""
+    tally: dict[tuple[str, str], int] = {}
+    said_t = -float("inf")
+    for row in sorted(rows, key=lambda r: r["end_s"]):
+        if row.get("action") or row.get("snr_db") is None or row["snr_db"] >= limit_db:
+            continue
+        owner = owner_of(row, placed)
+        kind = "noise" if owner is None else placed[owner].clip.kind
+        tally[kind, "loud"] = tally.get((kind, "loud"), 0) + 1
+        if loud_room_hint(row["snr_db"], limit_db, bool(row.get("went_on"))):
+            tally[kind, "hint"] = tally.get((kind, "hint"), 0) + 1
+            if row["end_s"] - said_t >= repeat_s:
+                said_t = row["end_s"]
+                tally[kind, "said"] = tally.get((kind, "said"), 0) + 1
+    return tally
+
+
+def hint_report(tally: dict[tuple[str, str], int], minutes: float, limit_db: float, repeat_s: float) -> list[str]:
+    """The hint's table: for what it was said, and how often aloud."""
+    lines = [f"What a rejection of a voice less than {limit_db:g} dB above the room says, by what was said: the hint "
+             "(\"the room is loud ...; speak up\") on the pilot's screen, and \"too noisy\" aloud at most every "
+             f"{repeat_s:g} s of the stream (gcs_voice/session/listen.py `loud_room_hint`; not for talk that went on "
+             "past a command's words).", "",
+             "| what was said | rejected below the limit | the hint shown | said aloud |", "|---|---|---|---|"]
+    for kind, name in KINDS.items():
+        lines.append(f"| {name} | {tally.get((kind, 'loud'), 0)} | {tally.get((kind, 'hint'), 0)} | "
+                     f"{tally.get((kind, 'said'), 0)} |")
+    said = sum(v for (k, stage), v in tally.items() if stage == "said")
+    lines += ["", f"Said aloud {said} times in {minutes:.0f} minutes of noisy streams ({said / minutes:.2f} a minute)."]
+    return lines
+
+
 @dataclass(frozen=True)
 class StreamSpec:
     """One stream to build and score: its noise ('none', a NOISE_FILES key or 'mixed'), SNR, level spread, length."""
@@ -512,6 +552,9 @@ def main(argv: list[str] | None = None) -> int:
     noise_audio = {name: read_wav(SHARED / "noise" / f) for name, f in NOISE_FILES.items()}
     lines = []
     levels: list[HeardLevel] = []
+    hints: dict[tuple[str, str], int] = {}
+    noisy_minutes = 0.0
+    loud_db = load_vad_settings(Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH).loud_room_snr_db
     shown_cmd = ""
     for spec in specs:
         pauses_s = spec.pauses or pause_s
@@ -534,6 +577,9 @@ def main(argv: list[str] | None = None) -> int:
         c = score(rows, placed, x.size / RATE, audible)
         if spec.snr_db is not None:
             levels += heard_levels(rows, placed, true_db)
+            for key, n in hint_tally(rows, placed, loud_db, LOUD_ROOM_REPEAT_S).items():
+                hints[key] = hints.get(key, 0) + n
+            noisy_minutes += x.size / RATE / 60
         wav.with_suffix(".outcomes.tsv").write_text("\n".join(outcomes(rows, placed)) + "\n", encoding="utf-8")
         noise_name = {"none": "none", "mixed": "all four in turn"}.get(spec.noise, NOISE_FILES.get(spec.noise, ""))
         line = (f"| {noise_name} | {pauses_s[0]:g}-{pauses_s[1]:g} | {'-' if spec.snr_db is None else f'{spec.snr_db:g}'} | "
@@ -583,8 +629,8 @@ def main(argv: list[str] | None = None) -> int:
            "Every utterance of the noisy streams above, by the SNR the segmenter gave its first segment "
            "(`snr_db` of `gcs-voice recognize --segment --json`: the voiced windows' level over the mean level of "
            "the last 10 s outside speech, gcs_voice/audio/vad.py `RoomLevel`); utterances never segmented are left "
-           "out.", "", *levels_report(levels, load_vad_settings(
-               Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH).loud_room_snr_db), ""]
+           "out.", "", *levels_report(levels, loud_db), "",
+           *hint_report(hints, noisy_minutes, loud_db, LOUD_ROOM_REPEAT_S), ""]
           if levels else []),
     ])
     out = args.out or str(ROOT / "docs" / "bench" / "stream.md")

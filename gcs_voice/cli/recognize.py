@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
                 "file": name, "lang": decision.lang or recognition.lang, "text": recognition.text,
                 "phrase": decision.phrase, "action": decision.action, "score": round(decision.score, 4),
                 "amount": decision.amount.label if decision.amount else None,
-                "reason": decision.reason, "ms": round(ms, 1), "engine": recognition.engine,
+                "reason": decision.reason, "went_on": decision.went_on, "ms": round(ms, 1), "engine": recognition.engine,
                 "matcher": decision.matcher,
                 "alternatives": [h.text for h in recognition.hypotheses],
                 "extra": {k: round(v, 4) for k, v in recognition.extra.items()},

@@ -44,7 +44,7 @@ if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers
     from gcs_voice.domain.dictionary import Dictionary
     from gcs_voice.understanding.matcher import Matcher
 
-__all__ = ["VoicePipeline", "StopPath", "ScriptStep", "TentativeUtterances", "read_utterance", "run_script", "run_microphone", "run_recording",
+__all__ = ["VoicePipeline", "loud_room_hint", "StopPath", "ScriptStep", "TentativeUtterances", "read_utterance", "run_script", "run_microphone", "run_recording",
            "start_voice_thread", "LATE_S"]
 
 BYTES_PER_S = 32_000
@@ -59,6 +59,15 @@ REPEAT_OVER_VOICE_S = 3.0
 OPERATION_WAIT_S = 60.0
 #: the pilot is told aloud that the room is loud at most this often (the rejection's text says it every time)
 LOUD_ROOM_REPEAT_S = 30.0
+
+
+def loud_room_hint(snr_db: float | None, limit_db: float, went_on: bool) -> str:
+    """What a rejected utterance tells the pilot of the room: that it is loud, when the voice stood less than
+    ``limit_db`` above it, since the pilot can help (speak up, or nearer the microphone); nothing for talk that went on
+    past a command's words (``Decision.went_on``), which asked nothing of the drone. Empty: nothing to say."""
+    if snr_db is None or snr_db >= limit_db or went_on:
+        return ""
+    return f"the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone"
 
 
 class StopPath:
@@ -247,7 +256,9 @@ class VoicePipeline:
         microphone's is spotted by the ear thread as it is spoken). An utterance that ``began_deaf`` (the pilot
         was speaking as the bridge's own sound ended: only its end was heard) is acted on only if it is a stop.
         ``snr_db``: how far the voice stood above the room (the segmenter's); a rejection of a voice less than
-        ``loud_room_snr_db`` above it says so, since the pilot can help it (speak up, or nearer the microphone).
+        ``loud_room_snr_db`` above it says so, since the pilot can help it (speak up, or nearer the microphone);
+        not when the speech went on past a command's words (``Decision.went_on``): that was talk, and where people
+        talk in a loud room the hint came about once a minute for nothing (docs/bench/stream.md).
         """
         spot = self.stop_path if recorded and bridge is not None else None
         speculated, self._speculated = self._speculated, None
@@ -300,9 +311,8 @@ class VoicePipeline:
                           late_s=round(late_s, 2), action=decision.action, source=source, utterance_end_t=end_t)
         if not decision.accepted:
             loud = snr_db is not None and snr_db < self.loud_room_snr_db
-            hint = (f"the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone"
-                    if loud else "")
-            say_loud = loud and time.time() - self._loud_room_said_t >= LOUD_ROOM_REPEAT_S
+            hint = loud_room_hint(snr_db, self.loud_room_snr_db, decision.went_on)
+            say_loud = bool(hint) and time.time() - self._loud_room_said_t >= LOUD_ROOM_REPEAT_S
             if say_loud:
                 self._loud_room_said_t = time.time()
             self.bus.emit("rejected", f"no action for {decision.text!r}: {decision.reason}{f' ({hint})' if hint else ''}",

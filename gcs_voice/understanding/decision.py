@@ -29,6 +29,9 @@ class Decision:
     matcher: str = ""
     #: how far, when an amount was said with the command ("go forward three metres"): the motion is bounded
     amount: Amount | None = None
+    #: no action because the speech went on past a command's words (the engine said so): talk, not a command
+    #: misheard; a pilot is not asked to speak up over the room for it
+    went_on: bool = False
 
     @property
     def label(self) -> str:

@@ -10,7 +10,7 @@ in which case the drone does nothing and the reason says why.
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rapidfuzz.distance import LCSseq, Levenshtein
@@ -100,6 +100,12 @@ class Matcher:
 
     def decide(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> Decision:
         """Nearest phrase over all dictionaries and alternatives, or no action with the reason."""
+        decision = self._decide(recognition, dictionaries)
+        if not decision.accepted and self._speech_went_on(recognition):
+            decision = replace(decision, went_on=True)
+        return decision
+
+    def _decide(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> Decision:
         limits = self.thresholds(recognition.engine)
         rejecting = limits["reject"] != 0.0
         ranked = self.rank(recognition, dictionaries, limits)
@@ -329,6 +335,15 @@ class Matcher:
     def word_distance(self, a: str, b: str, dictionary: Dictionary) -> float:
         """Normalised distance between two single words (characters; the phonetic matcher: sounds)."""
         return Levenshtein.normalized_distance(a, b)
+
+    def _speech_went_on(self, recognition: Recognition) -> bool:
+        """Whether the engine heard speech go on past a command's words: Whisper's free pass ran out of room
+        (``transcript_cut``), or speech went on after the command it placed (``speech_beyond_s`` over its limit)."""
+        if recognition.extra.get("transcript_cut"):
+            return True
+        limit = evidence_limits(recognition.engine, self.thresholds_path, recognition.lang).get("max_speech_beyond_s")
+        beyond = recognition.extra.get("speech_beyond_s")
+        return limit is not None and beyond is not None and beyond > limit
 
     def _evidence_reason(self, recognition: Recognition) -> str:
         for key, limit in evidence_limits(recognition.engine, self.thresholds_path, recognition.lang).items():
