@@ -427,15 +427,19 @@ KINDS = {"command": "commands", "word": "non-command words", "sentence": "senten
 def hint_tally(rows: list[dict], placed: list[Placed], limit_db: float, repeat_s: float) -> dict[tuple[str, str], int]:
     """Rejected segments whose voice stood less than ``limit_db`` above the room, by what was said: how many
     (``loud``), how many the pilot is told the room is loud (``hint``: gcs_voice.session.listen.loud_room_hint), and
-    how many of those it says aloud (``said``: at most every ``repeat_s`` of the stream)."""
+    how many of those it says aloud (``said``: at most every ``repeat_s`` of the stream); ``said_any``: aloud if talk
+    that went on were told too (session 33's rule)."""
     tally: dict[tuple[str, str], int] = {}
-    said_t = -float("inf")
+    said_t = said_any_t = -float("inf")
     for row in sorted(rows, key=lambda r: r["end_s"]):
         if row.get("action") or row.get("snr_db") is None or row["snr_db"] >= limit_db:
             continue
         owner = owner_of(row, placed)
         kind = "noise" if owner is None else placed[owner].clip.kind
         tally[kind, "loud"] = tally.get((kind, "loud"), 0) + 1
+        if row["end_s"] - said_any_t >= repeat_s:
+            said_any_t = row["end_s"]
+            tally[kind, "said_any"] = tally.get((kind, "said_any"), 0) + 1
         if loud_room_hint(row["snr_db"], limit_db, bool(row.get("went_on"))):
             tally[kind, "hint"] = tally.get((kind, "hint"), 0) + 1
             if row["end_s"] - said_t >= repeat_s:
@@ -450,12 +454,15 @@ def hint_report(tally: dict[tuple[str, str], int], minutes: float, limit_db: flo
              "(\"the room is loud ...; speak up\") on the pilot's screen, and \"too noisy\" aloud at most every "
              f"{repeat_s:g} s of the stream (gcs_voice/session/listen.py `loud_room_hint`; not for talk that went on "
              "past a command's words).", "",
-             "| what was said | rejected below the limit | the hint shown | said aloud |", "|---|---|---|---|"]
+             "| what was said | rejected below the limit | the hint shown | said aloud | said aloud if talk were told too |",
+             "|---|---|---|---|---|"]
     for kind, name in KINDS.items():
         lines.append(f"| {name} | {tally.get((kind, 'loud'), 0)} | {tally.get((kind, 'hint'), 0)} | "
-                     f"{tally.get((kind, 'said'), 0)} |")
+                     f"{tally.get((kind, 'said'), 0)} | {tally.get((kind, 'said_any'), 0)} |")
     said = sum(v for (k, stage), v in tally.items() if stage == "said")
-    lines += ["", f"Said aloud {said} times in {minutes:.0f} minutes of noisy streams ({said / minutes:.2f} a minute)."]
+    said_any = sum(v for (k, stage), v in tally.items() if stage == "said_any")
+    lines += ["", f"Said aloud {said} times in {minutes:.0f} minutes of noisy streams ({said / minutes:.2f} a minute; "
+              f"{said_any} if talk were told too)."]
     return lines
 
 
