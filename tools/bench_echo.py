@@ -149,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--split", choices=("dev", "test"), default="test",
                         help="whose stops: dev (choose the canceller's settings on) or test (report)")
     parser.add_argument("--cancel", default="", help="canceller settings to compare, KEY=VALUE[;KEY=VALUE...] "
-                        "separated by commas (default: the shipped [echo] of sounds.toml)")
+                        "separated by commas, each over the shipped [echo] of sounds.toml (default: as shipped)")
     parser.add_argument("--over-voice-thresholds", default="",
                         help="the spotter's thresholds while the bridge speaks to compare, comma-separated "
                              "(default: the shipped over_voice_threshold of stop_spotter.toml)")
@@ -172,8 +172,9 @@ def main(argv: list[str] | None = None) -> int:
     over_voice = [load_stop_spotter(langs, over_voice_thresholds=None if t is None else {lang: t for lang in langs})
                   for t in strict]
     s = load_sound_settings()
-    settings = ([dict((k, float(v)) for k, v in (kv.split("=") for kv in group.split(";"))) for group in args.cancel.split(",")]
-                if args.cancel else [s.echo_cancel or {}])
+    shipped = dict(s.echo_cancel or {})
+    settings = ([{**shipped, **{k: float(v) for k, v in (kv.split("=") for kv in group.split(";"))}}
+                 for group in args.cancel.split(",")] if args.cancel else [shipped])
 
     def cue(words: str) -> np.ndarray:
         return np.frombuffer(tone(s.tones["doing"], s.amplitude, s.fade_s) + Speech("en-us", s.speed_wpm).say(words),
@@ -181,6 +182,19 @@ def main(argv: list[str] | None = None) -> int:
 
     words, earlier = "going forward, turning right", ["going left", "refused, not armed", "going back"]
     voice, earlier_voices = cue(words), [cue(w) for w in earlier]
+    # a session some minutes in: the canceller has heard each cue the bridge can say once (settled)
+    from gcs_voice.session.feedback import load_phrases
+
+    voices = {lang: Speech(load_phrases(lang).voice, s.speed_wpm) for lang in langs}
+
+    def rendered_cue(lang: str, tone_name: str, cue_words: str) -> np.ndarray:
+        pcm = tone(s.tones[tone_name], s.amplitude, s.fade_s)
+        if cue_words:
+            pcm += bytes(int(0.05 * RATE) * 2) + voices[lang].say(cue_words)
+        return np.frombuffer(pcm, "<i2").astype(np.float64)
+
+    cues = [(lang, tone_name, cue_words) for lang in langs for tone_name, cue_words in every_cue(lang)]
+    session_voices = earlier_voices + [rendered_cue(*c) for c in cues]
     response = room_response(args.rt60, args.drr_db) if args.rt60 > 0 else np.ones(1)
     delay = int(args.delay_ms / 1000 * RATE)
 
@@ -203,8 +217,12 @@ def main(argv: list[str] | None = None) -> int:
     def named(label: str, t: float | None) -> str:
         return label if len(strict) == 1 else f"{label}, over-voice threshold {t:g}"
 
-    per = ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                                f" ({how})" for c in settings for how in ("cold", "warm", "learned")]
+    def changed(c: dict) -> str:
+        """The settings that differ from the shipped ones, for a column's name."""
+        return " " + ", ".join(f"{k} {v:g}" for k, v in c.items() if shipped.get(k) != v) if args.cancel else ""
+
+    per = ["raw microphone"] + [f"cancelled{changed(c)} ({how})" for c in settings
+                                for how in ("cold", "warm", "learned", "settled")]
     labels = [named(label, t) for t in strict for label in per]
     rows = []
     for level in levels:
@@ -220,9 +238,9 @@ def main(argv: list[str] | None = None) -> int:
             reference[:voice.size] = voice * gain
             outs = [mic]
             for c in settings:
-                for heard_before in (0, 1, len(earlier_voices)):
+                for heard_before in (0, 1, len(earlier_voices), len(session_voices)):
                     canceller = EchoCanceller(**c)
-                    for before in earlier_voices[:heard_before]:  # earlier cues of the session: the room heard
+                    for before in session_voices[:heard_before]:  # earlier cues of the session: the room heard
                         e = room(before * gain)
                         m, r = np.zeros(e.size + RATE // 2), np.zeros(e.size + RATE // 2)
                         m[:e.size], r[:before.size] = e, before * gain
@@ -238,18 +256,8 @@ def main(argv: list[str] | None = None) -> int:
     # Every cue, played in a new order each round into the same room (one canceller for the whole session, as
     # live), over a quiet room's floor (-64 dBFS of white noise); the cue's voiced level is the pilot's.
     rng = np.random.default_rng(1)
-    from gcs_voice.session.feedback import load_phrases
-
-    cues = [(lang, tone_name, cue_words) for lang in langs for tone_name, cue_words in every_cue(lang)]
-    voices = {lang: Speech(load_phrases(lang).voice, s.speed_wpm) for lang in langs}
     pilot_dbfs = float(np.median([voiced_dbfs(x) for x in alone])) if alone else -26.0
-    rendered = []
-    for lang, tone_name, cue_words in cues:
-        pcm = tone(s.tones[tone_name], s.amplitude, s.fade_s)
-        if cue_words:
-            pcm += bytes(int(0.05 * RATE) * 2) + voices[lang].say(cue_words)
-        x = np.frombuffer(pcm, "<i2").astype(np.float64)
-        rendered.append(x * 10 ** ((pilot_dbfs - voiced_dbfs(x)) / 20))
+    rendered = [x * 10 ** ((pilot_dbfs - voiced_dbfs(x)) / 20) for x in session_voices[len(earlier_voices):]]
     false_stops = [0] * ((1 + len(settings)) * len(over_voice))
     fired_on: dict[str, int] = {}  # the cues the spotter fired on over the bridge's voice (cancelled, first threshold)
     cancellers = [EchoCanceller(**c) for c in settings]
@@ -277,8 +285,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.alignments:
         # Where the cue falls within the microphone's blocks changes what the canceller leaves of it: each cue
         # in many sessions, the first sample anywhere in a block and the clock up to 10 ms off
-        cancelled = [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                     for c in settings]
+        cancelled = [f"cancelled{changed(c)}" for c in settings]
         heads = [f"{named(label, t)}, {how}" for t in strict for label in cancelled
                  for how in ("every stop word heard", "those on its own echo's remains dismissed")]
         aligned = [f"The same cues in {args.alignments} sessions of 4 plays each, the cue's first sample anywhere in "
@@ -296,8 +303,7 @@ def main(argv: list[str] | None = None) -> int:
             print(aligned[-1], flush=True)
         aligned.append("")
     false_labels = [named(label, t) for t in strict for label in
-                    ["raw microphone"] + [f"cancelled{' ' + ', '.join(f'{k} {v:g}' for k, v in c.items()) if args.cancel else ''}"
-                                          for c in settings]]
+                    ["raw microphone"] + [f"cancelled{changed(c)}" for c in settings]]
     false_row = "| stops fired | " + " | ".join(f"{n}/{played}" for n in false_stops) + " |"
     print(false_row, flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
@@ -325,11 +331,13 @@ def main(argv: list[str] | None = None) -> int:
         f"{'the shipped over_voice_threshold of gcs_voice/asr/stop_spotter.toml' if strict == [None] else 'each named'}"
         "; a stop alone is judged at the usual one): the raw microphone, or the microphone less the echo "
         "canceller's estimate of the cue (gcs_voice/audio/echo_cancel.py, given what was played, with its comfort "
-        "noise: the shipped [echo] of sounds.toml unless named), from a "
+        "noise: the shipped [echo] of sounds.toml, with the settings named changed), from a "
         f"fresh filter (cold: the session's first cue), one that has heard one earlier cue (warm: \"{earlier[0]}\", "
         f"{earlier_voices[0].size / RATE:.1f} s), or {len(earlier)} (learned: \"" + '", "'.join(earlier) + "\", "
         f"{sum(v.size for v in earlier_voices) / RATE:.1f} s; a canceller that has heard less than its learn_s of the "
-        "bridge's sound assumes the worst of the echo, gcs_voice/audio/echo_cancel.py).",
+        "bridge's sound assumes the worst of the echo, gcs_voice/audio/echo_cancel.py), or those and every cue of the "
+        f"session once (settled: {len(session_voices)} cues, {sum(v.size for v in session_voices) / RATE:.0f} s, a "
+        "session some minutes in).",
         "",
         "| the bridge's voice vs the pilot's | " + " | ".join(labels) + " |",
         "| --- | " + " | ".join("---" for _ in labels) + " |",
