@@ -364,15 +364,15 @@ def _energy_segments(chunks: Iterable[AudioChunk], s: VadSettings, listen: Speec
     in_utt, voiced_run, silent_run, start_s = False, 0, 0, 0.0
     pending = b""
     t_frames = 0  # frames seen so far
-    room, voiced_powers = RoomLevel(e.frame_s), [0.0]
+    room = RoomLevel(e.frame_s)
+    voiced_powers: list[float] = []  # the powers of the utterance's voiced frames
 
     def emit(frames: list[bytes], start: float) -> Utterance | None:
         pcm = b"".join(frames)
         if len(pcm) / 2 / SAMPLE_RATE < s.min_utterance_s:
             return None
-        voiced_frames = [power for power in voiced_powers if power > 0]
         return Utterance(pcm, start, start + len(pcm) / 2 / SAMPLE_RATE,
-                         room.snr_db(float(np.mean(voiced_frames))) if voiced_frames else None)
+                         room.snr_db(float(np.mean(voiced_powers))) if voiced_powers else None)
 
     for chunk in chunks:
         pending += chunk.pcm
