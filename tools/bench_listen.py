@@ -33,13 +33,13 @@ import shlex
 import subprocess
 import sys
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from tools.bench_latency import percentile
-from tools.bench_stream import NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
+from tools.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
 from tools.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -97,6 +97,9 @@ class Live:
     noise_actions: int
     decide_ms: list[float]
     sent_ms: list[float]
+    #: rejections of a voice barely above the room, by what was said (command, word, sentence, noise): marked loud,
+    #: given the hint on screen, and "too noisy" said aloud
+    loud: dict[tuple[str, str], int] = field(default_factory=dict)
 
 
 def live(jsonl: Path, placed: list[Placed]) -> Live:
@@ -113,6 +116,12 @@ def live(jsonl: Path, placed: list[Placed]) -> Live:
 
     result = Live({i: [] for i in range(len(placed))}, {}, 0, [], [])
     for e in events:
+        if e["kind"] == "rejected" and e.get("loud_room") and e.get("utterance_end_t"):
+            i = owner(e["utterance_end_t"])
+            kind = "noise" if i is None else placed[i].clip.kind
+            for stage, key in (("loud", "loud_room"), ("hint", "hint"), ("said", "say_loud_room")):
+                if e.get(key):
+                    result.loud[kind, stage] = result.loud.get((kind, stage), 0) + 1
         if e["kind"] != "command":
             continue
         if e.get("origin") == "spotter" and e.get("sent_t"):  # fired while the word was being said
@@ -228,6 +237,15 @@ def main(argv: list[str] | None = None) -> int:
         f"| false actions on noise alone | {got.noise_actions} |",
         f"| end of speech to decision, ms p50 / p95 | {fmt(got.decide_ms)} |",
         f"| end of speech to setpoint on the wire, ms p50 / p95 | {fmt(got.sent_ms)} |",
+        "",
+        "Rejections of a voice less than `loud_room_snr_db` above the room (gcs_voice/audio/vad.toml), by what was "
+        "said: marked loud, the hint shown (\"the room is loud ...; speak up\"), and \"too noisy\" said aloud (at most "
+        "every 30 s; the session plays no sound here, but the event says what it would say).",
+        "",
+        "| what was said | marked loud | hint shown | said aloud |",
+        "|---|---|---|---|",
+        *(f"| {name} | {got.loud.get((kind, 'loud'), 0)} | {got.loud.get((kind, 'hint'), 0)} | "
+          f"{got.loud.get((kind, 'said'), 0)} |" for kind, name in KINDS.items()),
         "",
     ]
     if lost:
