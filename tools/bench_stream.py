@@ -424,11 +424,12 @@ def levels_report(levels: list[HeardLevel], limit_db: float) -> list[str]:
 KINDS = {"command": "commands", "word": "non-command words", "sentence": "sentences", "noise": "noise alone"}
 
 
-def hint_tally(rows: list[dict], placed: list[Placed], limit_db: float, repeat_s: float) -> dict[tuple[str, str], int]:
+def hint_tally(rows: list[dict], placed: list[Placed], limit_db: float, repeat_s: float,
+               min_margin: float = -float("inf")) -> dict[tuple[str, str], int]:
     """Rejected segments whose voice stood less than ``limit_db`` above the room, by what was said: how many
     (``loud``), how many the pilot is told the room is loud (``hint``: gcs_voice.session.listen.loud_room_hint), and
-    how many of those it says aloud (``said``: at most every ``repeat_s`` of the stream); ``said_any``: aloud if talk
-    that went on were told too (session 33's rule)."""
+    how many of those it says aloud (``said``: at most every ``repeat_s`` of the stream); ``said_any``: aloud if every
+    such rejection were told (session 33's rule)."""
     tally: dict[tuple[str, str], int] = {}
     said_t = said_any_t = -float("inf")
     for row in sorted(rows, key=lambda r: r["end_s"]):
@@ -440,7 +441,8 @@ def hint_tally(rows: list[dict], placed: list[Placed], limit_db: float, repeat_s
         if row["end_s"] - said_any_t >= repeat_s:
             said_any_t = row["end_s"]
             tally[kind, "said_any"] = tally.get((kind, "said_any"), 0) + 1
-        if loud_room_hint(row["snr_db"], limit_db, bool(row.get("went_on"))):
+        if loud_room_hint(row["snr_db"], limit_db, bool(row.get("went_on")), row.get("extra", {}).get("margin"),
+                          min_margin):
             tally[kind, "hint"] = tally.get((kind, "hint"), 0) + 1
             if row["end_s"] - said_t >= repeat_s:
                 said_t = row["end_s"]
@@ -452,9 +454,10 @@ def hint_report(tally: dict[tuple[str, str], int], minutes: float, limit_db: flo
     """The hint's table: for what it was said, and how often aloud."""
     lines = [f"What a rejection of a voice less than {limit_db:g} dB above the room says, by what was said: the hint "
              "(\"the room is loud ...; speak up\") on the pilot's screen, and \"too noisy\" aloud at most every "
-             f"{repeat_s:g} s of the stream (gcs_voice/session/listen.py `loud_room_hint`; not for talk that went on "
-             "past a command's words).", "",
-             "| what was said | rejected below the limit | the hint shown | said aloud | said aloud if talk were told too |",
+             f"{repeat_s:g} s of the stream (gcs_voice/session/listen.py `loud_room_hint`: not for talk that went on "
+             "past a command's words, nor when no command phrase came within `loud_room_min_margin` of what Whisper "
+             "heard).", "",
+             "| what was said | rejected below the limit | the hint shown | said aloud | said aloud if every one were told |",
              "|---|---|---|---|---|"]
     for kind, name in KINDS.items():
         lines.append(f"| {name} | {tally.get((kind, 'loud'), 0)} | {tally.get((kind, 'hint'), 0)} | "
@@ -462,7 +465,7 @@ def hint_report(tally: dict[tuple[str, str], int], minutes: float, limit_db: flo
     said = sum(v for (k, stage), v in tally.items() if stage == "said")
     said_any = sum(v for (k, stage), v in tally.items() if stage == "said_any")
     lines += ["", f"Said aloud {said} times in {minutes:.0f} minutes of noisy streams ({said / minutes:.2f} a minute; "
-              f"{said_any} if talk were told too)."]
+              f"{said_any} if every one were told, session 33's rule)."]
     return lines
 
 
@@ -561,7 +564,8 @@ def main(argv: list[str] | None = None) -> int:
     levels: list[HeardLevel] = []
     hints: dict[tuple[str, str], int] = {}
     noisy_minutes = 0.0
-    loud_db = load_vad_settings(Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH).loud_room_snr_db
+    vad_settings = load_vad_settings(Path(args.vad_settings) if args.vad_settings else VAD_SETTINGS_PATH)
+    loud_db = vad_settings.loud_room_snr_db
     shown_cmd = ""
     for spec in specs:
         pauses_s = spec.pauses or pause_s
@@ -584,7 +588,7 @@ def main(argv: list[str] | None = None) -> int:
         c = score(rows, placed, x.size / RATE, audible)
         if spec.snr_db is not None:
             levels += heard_levels(rows, placed, true_db)
-            for key, n in hint_tally(rows, placed, loud_db, LOUD_ROOM_REPEAT_S).items():
+            for key, n in hint_tally(rows, placed, loud_db, LOUD_ROOM_REPEAT_S, vad_settings.loud_room_min_margin).items():
                 hints[key] = hints.get(key, 0) + n
             noisy_minutes += x.size / RATE / 60
         wav.with_suffix(".outcomes.tsv").write_text("\n".join(outcomes(rows, placed)) + "\n", encoding="utf-8")

@@ -88,6 +88,8 @@ class VadSettings:
     max_utterance_s: float = 8.0
     #: a voice less than this far above the room, not understood, is told so (gcs_voice.session.listen)
     loud_room_snr_db: float = 10.0
+    #: ... when Whisper scoring's margin says a command was near (gcs_voice.session.listen.loud_room_hint)
+    loud_room_min_margin: float = -3.0
     energy: EnergySettings = field(default_factory=EnergySettings)
     silero: SileroSettings = field(default_factory=SileroSettings)
 
@@ -119,6 +121,7 @@ def load_vad_settings(path: Path = VAD_SETTINGS_PATH, method: str | None = None)
     return VadSettings(method=chosen, min_utterance_s=float(data.get("min_utterance_s", 0.15)),
                        max_utterance_s=float(data.get("max_utterance_s", 8.0)),
                        loud_room_snr_db=float(data.get("loud_room_snr_db", 10.0)),
+                       loud_room_min_margin=float(data.get("loud_room_min_margin", -3.0)),
                        energy=_section(EnergySettings, data.get("energy", {}), path),
                        silero=_section(SileroSettings, data.get("silero", {}), path))
 

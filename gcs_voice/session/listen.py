@@ -61,11 +61,14 @@ OPERATION_WAIT_S = 60.0
 LOUD_ROOM_REPEAT_S = 30.0
 
 
-def loud_room_hint(snr_db: float | None, limit_db: float, went_on: bool) -> str:
+def loud_room_hint(snr_db: float | None, limit_db: float, went_on: bool, margin: float | None = None,
+                   min_margin: float = -float("inf")) -> str:
     """What a rejected utterance tells the pilot of the room: that it is loud, when the voice stood less than
-    ``limit_db`` above it, since the pilot can help (speak up, or nearer the microphone); nothing for talk that went on
-    past a command's words (``Decision.went_on``), which asked nothing of the drone. Empty: nothing to say."""
-    if snr_db is None or snr_db >= limit_db or went_on:
+    ``limit_db`` above it, since the pilot can help (speak up, or nearer the microphone); but only when it may have
+    been a command: not for talk that went on past a command's words (``Decision.went_on``), nor when Whisper scoring
+    found no command phrase within ``min_margin`` of what it heard (``margin``: a word like "bird", not a command
+    misheard). Empty: nothing to say."""
+    if snr_db is None or snr_db >= limit_db or went_on or (margin is not None and margin < min_margin):
         return ""
     return f"the room is loud: the voice was {snr_db:.0f} dB above it; speak up, or nearer the microphone"
 
@@ -190,7 +193,9 @@ class VoicePipeline:
         #: speculations given up half-way because their utterance went on (``speculate(stale=...)``)
         self.abandoned = 0
         #: a rejected voice less than this far above the room is told that the room is loud (vad.toml)
-        self.loud_room_snr_db = load_vad_settings().loud_room_snr_db if loud_room_snr_db is None else loud_room_snr_db
+        vad = load_vad_settings()
+        self.loud_room_snr_db = vad.loud_room_snr_db if loud_room_snr_db is None else loud_room_snr_db
+        self.loud_room_min_margin = vad.loud_room_min_margin
         self._loud_room_said_t = -float("inf")
 
     def pause_motion(self, bridge: Bridge, utterance_end_t: float | None = None) -> None:
@@ -311,7 +316,8 @@ class VoicePipeline:
                           late_s=round(late_s, 2), action=decision.action, source=source, utterance_end_t=end_t)
         if not decision.accepted:
             loud = snr_db is not None and snr_db < self.loud_room_snr_db
-            hint = loud_room_hint(snr_db, self.loud_room_snr_db, decision.went_on)
+            hint = loud_room_hint(snr_db, self.loud_room_snr_db, decision.went_on, recognition.extra.get("margin"),
+                                  self.loud_room_min_margin)
             say_loud = bool(hint) and time.time() - self._loud_room_said_t >= LOUD_ROOM_REPEAT_S
             if say_loud:
                 self._loud_room_said_t = time.time()
