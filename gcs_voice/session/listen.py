@@ -261,9 +261,9 @@ class VoicePipeline:
         microphone's is spotted by the ear thread as it is spoken). An utterance that ``began_deaf`` (the pilot
         was speaking as the bridge's own sound ended: only its end was heard) is acted on only if it is a stop.
         ``snr_db``: how far the voice stood above the room (the segmenter's); a rejection of a voice less than
-        ``loud_room_snr_db`` above it says so, since the pilot can help it (speak up, or nearer the microphone);
-        not when the speech went on past a command's words (``Decision.went_on``): that was talk, and where people
-        talk in a loud room the hint came about once a minute for nothing (docs/bench/stream.md).
+        ``loud_room_snr_db`` above it says so, since the pilot can help it (speak up, or nearer the microphone),
+        where a command may have been lost (``loud_room_hint``): where people talk in a loud room, a hint for every
+        rejection came about once a minute, for talk as much as for commands (docs/bench/listen.md).
         """
         spot = self.stop_path if recorded and bridge is not None else None
         speculated, self._speculated = self._speculated, None
