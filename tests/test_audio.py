@@ -371,3 +371,21 @@ def test_the_segmenter_says_how_far_each_voice_stood_above_the_room(real_speech_
     assert room.snr_db(1e-3) is None
     room.hear(1e-4)
     assert room.snr_db(1.1e-3) == 10.0
+
+
+def test_another_noise_seed_draws_another_segment_at_the_same_snr(real_speech_dir):
+    """``bench_real spread`` asks how far the figures move with the noise segment drawn: the shipped seed must
+    give exactly the audio the shipped figures were made from, another seed other noise under the same speech,
+    at the same SNR (over the speech's voiced frames)."""
+    from tools.real_speech import NOISE_SEED, active_power, condition_audio, load_recordings, read_wav
+
+    rec = next(r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command")
+    speech = read_wav(rec.path).astype(np.float64)
+    shipped = condition_audio(rec, "kitchen12")
+    assert np.array_equal(shipped, condition_audio(rec, "kitchen12", NOISE_SEED))
+    other = condition_audio(rec, "kitchen12", 1)
+    assert not np.allclose(shipped, other)
+    for mixed in (shipped, other):
+        noise = mixed.astype(np.float64) - speech
+        snr = 10 * np.log10(active_power(speech) / np.mean(noise ** 2))
+        assert abs(snr - 12.0) < 0.1, snr

@@ -22,6 +22,11 @@ transcript would cost and save, on dev and test.
 report) the most any threshold of the rule could keep within the targets, chosen on the test split itself: an upper
 bound that tells whether better thresholds or a better model is what is missing.
 
+Every noisy file gets one segment of its noise (``tools.real_speech.NOISE_SEED``); ``spread`` draws others and
+says how far each figure moves with the draw, so that a difference smaller than that is not read as a change:
+
+    python -m tools.bench_real spread --seeds 1,2,3,4 --out docs/bench/real_spread.md
+
 Another model (a stronger Whisper, say) is a variant, kept in its own cache and never mixed with the shipped one:
 
     python -m tools.bench_real recognise --model PATH/faster-whisper-small --tag small
@@ -51,7 +56,7 @@ from gcs_voice.domain.text import normalize_text
 from gcs_voice.understanding import get_matcher
 from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
 from tools.cpu_steal import CpuSample, busy_loops
-from tools.real_speech import CONDITIONS, SHARED, Recording, condition_audio, load_recordings
+from tools.real_speech import CONDITIONS, NOISE_SEED, SHARED, Recording, condition_audio, load_recordings
 
 REPO = Path(__file__).resolve().parent.parent
 CACHE_DIR = REPO / "out" / "bench" / "real"
@@ -124,7 +129,7 @@ def model_identity(model: str | None) -> str:
 
 
 def recognise(engine: str, model: str | None, conditions: list[str], split: str | None,
-              overrides: dict[str, float | str] | None = None) -> None:
+              overrides: dict[str, float | str] | None = None, noise_seed: int = NOISE_SEED) -> None:
     from gcs_voice.asr.registry import load_recognizer
 
     name, mode = ENGINES[engine]
@@ -143,7 +148,7 @@ def recognise(engine: str, model: str | None, conditions: list[str], split: str 
     print(f"{engine}: {len(todo)} recognitions to do ({len(recs)} files x {len(conditions)} conditions)", file=sys.stderr)
     with open(cache_path(engine), "a", encoding="utf-8") as out:
         for i, (rec, cond) in enumerate(todo):
-            result, dt = recognise_one(recognizer, condition_audio(rec, cond))
+            result, dt = recognise_one(recognizer, condition_audio(rec, cond, noise_seed))
             row = {"key": _key(rec, cond), "sha1": _digest(rec.path), "config": config,
                    "engine": result.engine, "lang": result.lang,
                    "hypotheses": [[h.text, h.confidence, h.score] for h in result.hypotheses],
@@ -599,6 +604,48 @@ def second_ear(engine: str = "whisper-score") -> str:
 
 
 # -- report -------------------------------------------------------------------------------------------
+#: the noisy conditions whose figures the spread covers by default (clean draws no noise)
+SPREAD_CONDITIONS = ("kitchen20", "kitchen12", "tap12", "bike12", "miaow12")
+
+
+def spread(seeds: list[int], conditions: list[str], split: str = "test") -> str:
+    """How far each noisy figure moves when every file gets another segment of the same noise.
+
+    The shipped figures come from one draw (``NOISE_SEED``): a difference between two settings, or between a
+    figure and a target, smaller than this spread may be the draw and not the setting. Each other seed keeps
+    its recognitions in its own cache (``--tag seedN``)."""
+    global _TAG
+    recs = load_recordings(split=split)
+    matcher = get_matcher(MATCHER)
+    seeds = [NOISE_SEED] + [s for s in seeds if s != NOISE_SEED]
+    counts: dict[tuple[str, int], Counts] = {}
+    try:
+        for seed in seeds:
+            _TAG = "" if seed == NOISE_SEED else f"-seed{seed}"
+            recognise("whisper-score", str(DEFAULT_MODEL), conditions, split, noise_seed=seed)
+            cache = load_cache("whisper-score")
+            for cond in conditions:
+                counts[cond, seed] = count(recs, cond, cache, matcher)
+    finally:
+        _TAG = ""
+    head = " | ".join(f"seed {s}" + (" (shipped)" if s == NOISE_SEED else "") for s in seeds)
+    lines = ["## The noise segment drawn", "",
+             f"Each file of the {split} split mixed with another segment of the same noise at the same SNR "
+             f"(`tools.real_speech.mix`, seed {', '.join(map(str, seeds))}), decided with the shipped thresholds. "
+             "Each cell: commands right, wrong actions, non-commands acted on, right class ranked first. The shipped "
+             "figures are the first draw: a difference smaller than the spread of its row may be the draw.",
+             f"Command: `python -m tools.bench_real spread --seeds {','.join(map(str, seeds[1:]))} --split {split}`.", "",
+             f"| condition | {head} | commands right, lowest to highest |",
+             "| --- | " + " | ".join("---" for _ in seeds) + " | --- |"]
+    for cond in conditions:
+        cells = [counts[cond, s] for s in seeds]
+        rights = [c.right for c in cells]
+        lines.append(f"| {cond} | " + " | ".join(
+            f"{c.right}/{c.commands}, {c.wrong} wrong, {c.others_acted}/{c.others}, first {c.ranked_first}" for c in cells)
+            + f" | {pct(min(rights), cells[0].commands)} to {pct(max(rights), cells[0].commands)} |")
+    return "\n".join(lines) + "\n"
+
+
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
     lines = ["# Real people: the voice front-end on real recordings", "",
@@ -865,6 +912,11 @@ def main(argv: list[str] | None = None) -> int:
     grd.add_argument("--write", action="store_true", help="write the chosen min_shared into thresholds.toml")
     sub.add_parser("second-ear", help="what PocketSphinx vetoing Whisper's actions would cost and save (not shipped)")
     sub.add_parser("stays", help="rejected utterances nearest a stop, by what was said (the pause's STAY rule)")
+    spr = sub.add_parser("spread", help="how far the noisy figures move with the noise segment drawn (other seeds)")
+    spr.add_argument("--seeds", default="1,2,3,4", help="noise seeds besides the shipped one")
+    spr.add_argument("--conditions", default=",".join(SPREAD_CONDITIONS))
+    spr.add_argument("--split", choices=("dev", "test"), default="test")
+    spr.add_argument("--out", type=Path, help="also write the section to this file (docs/bench/real_spread.md)")
     tim = sub.add_parser("timing", help="decision time on clean test files (run on an idle machine)")
     tim.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
     tim.add_argument("--model", default=str(DEFAULT_MODEL))
@@ -921,6 +973,21 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     if args.stage == "second-ear":
         print(second_ear())
+        return 0
+    if args.stage == "spread":
+        try:
+            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
+        except ValueError:
+            parser.error(f"--seeds {args.seeds!r}: expected whole numbers, such as 1,2,3")
+        conditions = args.conditions.split(",")
+        bad = [c for c in conditions if CONDITIONS.get(c, (None,))[0] is None]
+        if bad:
+            parser.error(f"--conditions: {', '.join(bad)} draws no noise (noisy ones: "
+                         f"{', '.join(c for c, (stem, _) in CONDITIONS.items() if stem)})")
+        text = spread(seeds, conditions, args.split)
+        print(text)
+        if args.out:
+            args.out.write_text(text, encoding="utf-8")
         return 0
     if args.stage == "stays":
         print(stays())

@@ -27,13 +27,16 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["SHARED", "SAMPLE_RATE", "Recording", "CONDITIONS", "load_recordings", "read_wav", "mix",
-           "condition_audio", "active_power"]
+           "condition_audio", "active_power", "NOISE_SEED"]
 
 REPO = Path(__file__).resolve().parent.parent
 SHARED = Path(os.environ.get("GCS_VOICE_SHARED", REPO.parent / "shared"))
 SAMPLE_RATE = 16_000
 UNKNOWN_SPEAKER = "picovoice_unknown"
 DEV_FRACTION = 0.6
+
+#: the seed of the noise segment each file gets (:func:`mix`): every shipped figure comes from this one draw
+NOISE_SEED = 1234
 
 #: condition name -> (noise file stem in ../shared/noise, SNR dB); "clean" adds nothing
 CONDITIONS: dict[str, tuple[str | None, float | None]] = {
@@ -107,7 +110,7 @@ def active_power(audio: np.ndarray, within_db: float = 10.0) -> float:
     return float(np.mean(p[p >= ref * 10 ** (-within_db / 10)]))
 
 
-def mix(speech: np.ndarray, noise: np.ndarray, snr_db: float, key: str, seed: int = 1234) -> np.ndarray:
+def mix(speech: np.ndarray, noise: np.ndarray, snr_db: float, key: str, seed: int = NOISE_SEED) -> np.ndarray:
     """``speech`` plus a segment of ``noise`` scaled to ``snr_db`` below its voiced power.
 
     The segment's offset comes from ``seed`` and crc32(``key``): the same file and noise always get the
@@ -127,15 +130,15 @@ def mix(speech: np.ndarray, noise: np.ndarray, snr_db: float, key: str, seed: in
 _NOISES: dict[str, np.ndarray] = {}
 
 
-def condition_audio(rec: Recording, condition: str) -> np.ndarray:
-    """The recording as heard under ``condition`` (a key of CONDITIONS)."""
+def condition_audio(rec: Recording, condition: str, seed: int = NOISE_SEED) -> np.ndarray:
+    """The recording as heard under ``condition`` (a key of CONDITIONS); ``seed`` draws another noise segment."""
     audio = read_wav(rec.path)
     stem, snr_db = CONDITIONS[condition]
     if stem is None:
         return audio
     if stem not in _NOISES:
         _NOISES[stem] = read_wav(SHARED / "noise" / f"{stem}.wav")
-    return mix(audio, _NOISES[stem], float(snr_db), key=f"{rec.path.name}|{stem}")
+    return mix(audio, _NOISES[stem], float(snr_db), key=f"{rec.path.name}|{stem}", seed=seed)
 
 
 def main(argv: list[str] | None = None) -> int:
