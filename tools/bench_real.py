@@ -702,7 +702,8 @@ VARIANTS = {
 def variants_report(engine: str = "whisper-score") -> str | None:
     """The variants table (dev split) from every ``<engine>-<tag>`` cache, or None when there is none: the
     variant caches are not in git, so a machine without them keeps the table it has."""
-    variants = sorted(CACHE_DIR.glob(f"{engine}-*.jsonl"))
+    # the spread's other noise draws (``seedN``) are the shipped configuration, not a variant of it
+    variants = [p for p in sorted(CACHE_DIR.glob(f"{engine}-*.jsonl")) if not re.fullmatch(rf"{engine}-seed\d+", p.stem)]
     cache = load_cache(engine)
     if not variants or not cache:
         return None
@@ -987,7 +988,8 @@ def main(argv: list[str] | None = None) -> int:
         text = spread(seeds, conditions, args.split)
         print(text)
         if args.out:
-            args.out.write_text(text, encoding="utf-8")
+            args.out.write_text("# Real people: how far the noisy figures move with the noise segment drawn\n\n" + text,
+                                encoding="utf-8")
         return 0
     if args.stage == "stays":
         print(stays())
