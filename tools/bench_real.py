@@ -981,7 +981,10 @@ def main(argv: list[str] | None = None) -> int:
         except ValueError:
             parser.error(f"--seeds {args.seeds!r}: expected whole numbers, such as 1,2,3")
         conditions = args.conditions.split(",")
-        bad = [c for c in conditions if CONDITIONS.get(c, (None,))[0] is None]
+        unknown = set(conditions) - set(CONDITIONS)
+        if unknown:
+            parser.error(f"unknown conditions {sorted(unknown)} (known: {', '.join(CONDITIONS)})")
+        bad = [c for c in conditions if CONDITIONS[c][0] is None]
         if bad:
             parser.error(f"--conditions: {', '.join(bad)} draws no noise (noisy ones: "
                          f"{', '.join(c for c, (stem, _) in CONDITIONS.items() if stem)})")
