@@ -69,6 +69,35 @@ class WhisperRecognizer:
         from threadpoolctl import ThreadpoolController
 
         self._threadpools = ThreadpoolController()
+        #: the domain ear (gcs_voice/asr/ear.py): scoring mode only, and only on the Whisper model it was trained on
+        self.ear = self._load_ear(resolved) if mode == "score" and self.settings.get("ear", True) else None
+
+    @staticmethod
+    def _load_ear(resolved: str):
+        from pathlib import Path
+
+        from gcs_voice.asr.ear import DomainEar
+
+        ear = DomainEar.load()
+        if ear is None:
+            return None
+        trained_on = ear.meta.get("model_bin_size")
+        model_bin = Path(resolved) / "model.bin"
+        if trained_on is not None and model_bin.is_file() and model_bin.stat().st_size != int(trained_on):
+            return None  # another Whisper model: its encoder speaks another language than the ear learnt
+        return ear
+
+    def hear(self, audio: np.ndarray) -> dict[str, float]:
+        """The domain ear's class probabilities for one utterance ({} without an ear): the utterance
+        encoded alone, not padded to a window (tens of milliseconds for a command)."""
+        if self.ear is None:
+            return {}
+        from gcs_voice.asr.ear import encoder_input, pool_frames
+
+        encoded = np.asarray(self.model.encode(encoder_input(audio, self.log_mel)))
+        if not self.ear.fits(encoded.shape[-1]):
+            return {}
+        return self.ear.evidence(pool_frames(encoded))
 
     def log_mel(self, audio: np.ndarray, window: int | None = None) -> np.ndarray:
         """Whisper's log-mel features of ``audio`` (zero-padded to ``window`` samples when given), with
@@ -266,6 +295,7 @@ class WhisperRecognizer:
             extra["amount_rival"] = float(result.amount_rival)
         if fixed_lang is None:
             _, extra["language_probability"], extra["dictionary_language_mass"] = self.detect(encoded, lang)
+        extra.update(self.hear(audio))
         hypotheses = tuple(Hypothesis(phrase.text, confidence=math.exp(min(0.0, score)), score=score)
                            for phrase, score in result.ranked[: int(s.get("score_alternatives", 5))])
         return Recognition(hypotheses, self.name, lang, audio_s, extra, transcript=result.heard_text)

@@ -29,13 +29,16 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from gcs_voice.actions.mapper import TRANSLATING_MOTIONS
 from gcs_voice.asr.base import Abandoned, BufferedStream
+from gcs_voice.asr.ear import ear_evidence
 from gcs_voice.audio.microphone import HeardUtterance
 from gcs_voice.audio.vad import load_vad_settings
 from gcs_voice.audio.sources import pcm_to_chunks
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.session.bridge import PAUSE, RESUME, STAY, Bridge, Request
 from gcs_voice.understanding.decision import Decision
+from gcs_voice.understanding.thresholds import ear_limits
 from gcs_voice.session.events import EventBus
 
 if TYPE_CHECKING:  # annotations only: the engines, the spotter and the matchers load when a session picks them
@@ -85,6 +88,11 @@ class StopPath:
         self.spotter = spotter
         self.bus = bus
         self.own_echo: Callable[[], bool] | None = None
+        #: a spotted stop holds a moving vehicle (PAUSE) and the utterance's decision settles it, instead of
+        #: cancelling the motion (set when the recogniser has a domain ear to settle it with: issue 52)
+        self.provisional = False
+        #: a provisional hold was asked and no decision has settled it yet
+        self.holding = False
         self._stream: SpotStream | None = None
         self._fired = False
         self._last_stop: Request | None = None  # the stop this path sent last
@@ -119,6 +127,11 @@ class StopPath:
         self._fired = False
         return hit.word
 
+    def take_hold(self) -> bool:
+        """Whether a provisional hold waits for a decision; the decision at hand settles it."""
+        holding, self.holding = self.holding, False
+        return holding
+
     def _repeat(self, bridge: Bridge, now: float) -> float | None:
         """Seconds since the stop this path sent last, if the vehicle still holds on it and it is recent."""
         last = self._last_stop
@@ -140,9 +153,20 @@ class StopPath:
                           "already holding, not sent again", word=word, utterance_end_t=end_t, spotted_t=now,
                           over_voice=over_voice, repeat=True)
             return
+        end = end_t if end_t is not None else now
+        if self.provisional and bridge.mapper.action in TRANSLATING_MOTIONS:
+            # Held at once, as a stop would be; the decision of the utterance settles it: a stop, another command,
+            # or speech that was no stop (the motion goes on: a stop for nothing must not cancel it)
+            self.bus.emit("spotted", f"stop word {word!r} heard{where}{' (still speaking)' if during else ''}: "
+                          "holding until it is decided", word=word, utterance_end_t=end_t, spotted_t=now,
+                          over_voice=over_voice, provisional=True)
+            self.holding = True
+            request = bridge.submit(Request(PAUSE, "spotter", None, end, now))
+            request.done.wait(STOP_WAIT_S)
+            return
         self.bus.emit("spotted", f"stop word {word!r} heard{where}{' (still speaking)' if during else ''}: stopping now",
                       word=word, utterance_end_t=end_t, spotted_t=now, over_voice=over_voice)
-        request = bridge.submit(Request("stop", "spotter", None, end_t if end_t is not None else now, now))
+        request = bridge.submit(Request("stop", "spotter", None, end, now))
         self._last_stop = request
         # Wait (a few ms) until the bridge has sent it: the main recogniser that runs next may hold the
         # interpreter for a second (PocketSphinx decodes without releasing the GIL) and starve the bridge.
@@ -179,6 +203,13 @@ class VoicePipeline:
         self.pause_while_deciding = pause_while_deciding
         #: heard before the recogniser (None: no spotter, stops wait for the main decision like any word)
         self.stop_path = StopPath(stop_spotter, bus) if stop_spotter is not None else None
+        #: a spotted stop is settled by the decision when the recogniser has a domain ear (gcs_voice/asr/ear.py):
+        #: the motion resumes after speech that was not understood only if the ear gives "stop" less than this
+        self.spotted_stop_min = _spotted_stop_min(recognizer)
+        if self.stop_path is not None:
+            self.stop_path.provisional = self.spotted_stop_min is not None
+        #: the domain ear's probability of "stop" for the last utterance heard (None: no ear)
+        self.last_ear_stop: float | None = None
         #: feed recorded PCM at the pace it was spoken (as a microphone would), so streaming engines
         #: work during the utterance and latency counts from its real end
         self.realtime = realtime
@@ -217,9 +248,14 @@ class VoicePipeline:
         on far more: docs/bench/stop.md).
 
         Nothing while another utterance waits for its decision (its end paused the vehicle too)."""
-        if not self.pause_while_deciding or decision.accepted or more_waiting:
+        spotted = self.stop_path is not None and not more_waiting and self.stop_path.take_hold()
+        if not (self.pause_while_deciding or spotted) or decision.accepted or more_waiting:
             return
         near_stop = "stop" in (self._class_of(words) for words in self.last_heard_words)
+        if spotted and not near_stop:
+            # the stop spotter held the vehicle: it stays stopped unless the domain ear is sure it was no stop
+            near_stop = (self.last_ear_stop is None or self.spotted_stop_min is None
+                         or self.last_ear_stop >= self.spotted_stop_min)
         bridge.submit(Request(STAY if near_stop else RESUME, "voice", decision, self.last_end_t, time.time()))
 
     def _class_of(self, words: str) -> str | None:
@@ -297,6 +333,7 @@ class VoicePipeline:
         #: hypothesis (a scored phrase)
         self.last_heard_words = (recognition.transcript or recognition.text,
                                  recognition.best.text if recognition.best else "")
+        self.last_ear_stop = ear_evidence(recognition.extra).get("stop")
         alternatives = [h.text for h in recognition.hypotheses[:5]]
         self.bus.emit("heard", f"heard {recognition.heard!r} ({recognition.engine}"
                       f"{', ' + recognition.lang if recognition.lang else ''}) from {source}",
@@ -337,6 +374,8 @@ class VoicePipeline:
         if not decision.accepted:
             self.settle_pause(bridge, decision, more_waiting is not None and more_waiting())
             return None
+        if self.stop_path is not None:
+            self.stop_path.take_hold()  # the decided action replaces a provisional hold
         return bridge.submit(Request(decision.action, "voice", decision, self.last_end_t, time.time()))
 
 
@@ -479,3 +518,11 @@ def _is_user_error(exc: BaseException) -> bool:
     from gcs_voice.errors import GcsVoiceError
 
     return isinstance(exc, GcsVoiceError)
+
+
+def _spotted_stop_min(recognizer: Any) -> float | None:
+    """The ear's "stop" probability under which a spotted stop resumes the motion after speech that was not
+    understood (``[ear.<engine>] spotted_stop``); None when the recogniser has no domain ear."""
+    if getattr(recognizer, "ear", None) is None:  # only Whisper in scoring mode has one
+        return None
+    return ear_limits(getattr(recognizer, "name", "")).get("spotted_stop")

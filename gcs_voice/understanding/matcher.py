@@ -9,18 +9,21 @@ in which case the drone does nothing and the reason says why.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 from rapidfuzz.distance import LCSseq, Levenshtein
 
-from gcs_voice.asr.base import Recognition
+from gcs_voice.asr.base import Hypothesis, Recognition
+from gcs_voice.asr.ear import NONE as EAR_NONE, ear_evidence
 from gcs_voice.domain import amounts
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.dictionary import Dictionary, Phrase
 from gcs_voice.errors import GcsVoiceError
-from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, evidence_limits, matcher_thresholds, transcript_limits
+from gcs_voice.understanding.thresholds import (THRESHOLDS_PATH, ear_limits, evidence_limits, matcher_thresholds,
+                                                transcript_limits)
 from gcs_voice.domain.text import normalize_text
 
 __all__ = ["Matcher", "Candidate", "Ranking", "MatcherOptionError"]
@@ -108,7 +111,11 @@ class Matcher:
     def _decide(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> Decision:
         limits = self.thresholds(recognition.engine)
         rejecting = limits["reject"] != 0.0
-        ranked = self.rank(recognition, dictionaries, limits)
+        vouched, recognition = self._ear_vouches(recognition, dictionaries) if rejecting else ("", recognition)
+        ranked = self.rank(recognition, dictionaries, limits, waived=EAR_WAIVES if vouched else frozenset())
+        if vouched and ranked.best is not None and ranked.best.phrase.action != vouched:
+            vouched = ""  # the ear spoke for another phrase than the one matched: no waiver
+            ranked = self.rank(recognition, dictionaries, limits)
         if ranked.reason and (rejecting or ranked.best is None):
             return self._reject(recognition.text, ranked.reason)
         best, rival = ranked.best, ranked.rival
@@ -129,8 +136,9 @@ class Matcher:
                 score,
             )
         reason = (_negation_reason(recognition, best) or _lost_number_reason(recognition, best)
-                  or self._weak_match_reason(recognition, best)
-                  or self._transcript_reason(recognition, best)) if rejecting else ""
+                  or ("" if vouched else self._weak_match_reason(recognition, best))
+                  or self._transcript_reason(recognition, best, judge_words=not vouched)
+                  or self._ear_veto_reason(recognition, best)) if rejecting else ""
         if reason:
             return self._reject(best.text, reason, best.phrase.text, lang, score)
         amount, reason = amounts.judge(recognition.transcript or recognition.text, recognition.extra,
@@ -145,13 +153,16 @@ class Matcher:
             phrase=best.phrase.text,
             lang=lang,
             score=score,
-            reason="" if best.rank == 0 else f"matched alternative #{best.rank + 1} '{best.text}'",
+            reason=(f"matched alternative #{best.rank + 1} '{best.text}'" if best.rank else "")
+                   + (f"{'; ' if best.rank else ''}the domain ear vouched for {vouched} "
+                      f"({ear_evidence(recognition.extra).get(vouched, 0.0):.0%})" if vouched else ""),
             matcher=self.name,
             amount=amount,
         )
 
     def rank(
-        self, recognition: Recognition, dictionaries: Sequence[Dictionary], limits: dict[str, float] | None = None
+        self, recognition: Recognition, dictionaries: Sequence[Dictionary], limits: dict[str, float] | None = None,
+        waived: frozenset[str] = frozenset(),
     ) -> Ranking:
         """The nearest phrase and the nearest phrase of another class, before any distance threshold.
 
@@ -177,7 +188,7 @@ class Matcher:
         hyps = recognition.hypotheses
         heard = [item for item in heard
                  if item[0] == 0 or hyps[item[0]].confidence is None or hyps[item[0]].confidence >= floor]
-        reason = self._evidence_reason(recognition)
+        reason = self._evidence_reason(recognition, waived)
         conf = recognition.best.confidence if recognition.best else None
         if not reason and conf is not None and conf < limits["min_confidence"]:
             text = recognition.text
@@ -217,7 +228,7 @@ class Matcher:
             f"distance {best.distance:.2f} > {max_distance:.2f})"
         )
 
-    def _transcript_reason(self, recognition: Recognition, best: Candidate) -> str:
+    def _transcript_reason(self, recognition: Recognition, best: Candidate, judge_words: bool = True) -> str:
         """The engine's own transcript (Whisper scoring mode) must not say more than the command.
 
         The margin says the phrase is nearly as likely as what Whisper heard; but a sentence that starts
@@ -268,6 +279,8 @@ class Matcher:
         second = next((w for w in heard_words if w not in words and w in commands), None)
         if second is not None:
             return f"two commands: heard '{recognition.transcript}', and '{second}' is a {commands[second]} command"
+        if not judge_words:  # the domain ear vouched for the class: a filler or a misspelt word is no reason
+            return ""
         i, taken_alone = 0, False  # whether the word before was taken by itself, not as half of a pair
         while i < len(heard_words):
             word = heard_words[i]
@@ -290,6 +303,56 @@ class Matcher:
                 return (f"not a command: heard '{recognition.transcript}', and '{word}' is in no "
                         f"{best.phrase.action} phrase")
         return ""
+
+    def _ear_vouches(self, recognition: Recognition, dictionaries: Sequence[Dictionary]) -> tuple[str, Recognition]:
+        """The class the domain ear vouches for ("" for none), and the recognition to decide on.
+
+        The ear (gcs_voice/asr/ear.py) is trained here on our commands in noise. It vouches for the class of the
+        phrase the engine ranked first when it gives that class at least ``vouch``; or, when it gives one class at
+        least ``alone``, for that class, put first among the engine's phrases (its best-scored phrase of the class,
+        else the class's phrase nearest to what the engine wrote), unless what the engine wrote says no: nothing
+        written, a not-command ("Yes."), more words than any phrase of the class and a filler, or speech that went
+        on. A vouched class is not refused for the rules that noise and accents break (the score's margin and class
+        gap, the transcript's sounds and words: "y es izquierda" for "izquierda"); negations, numbers, two commands
+        and the amounts are still judged."""
+        ear = ear_evidence(recognition.extra)
+        limits = ear_limits(recognition.engine, self.thresholds_path, recognition.lang)
+        if not ear:
+            return "", recognition
+        phrases = {p.text: (p, d) for d in dictionaries for p in d.phrases}
+        first = recognition.hypotheses[0].text if recognition.hypotheses else ""
+        action = phrases[first][0].action if first in phrases else ""
+        if action and ear.get(action, 0.0) >= limits.get("vouch", math.inf):
+            return action, recognition
+        top = max(ear, key=ear.__getitem__)
+        heard = normalize_text(recognition.transcript)
+        if (top == EAR_NONE or ear[top] < limits.get("alone", math.inf) or not heard
+                or recognition.extra.get("transcript_cut")):
+            return "", recognition
+        of_class = [(p, d) for p, d in phrases.values() if p.action == top]
+        if not of_class or any(d.strip_skip_words(heard) in d.not_commands for d in dictionaries):
+            return "", recognition
+        if len(heard.split()) > max(len(p.match_key.split()) for p, _ in of_class) + 1:
+            return "", recognition
+        chosen = next((h for h in recognition.hypotheses if h.text in phrases and phrases[h.text][0].action == top),
+                      None)
+        if chosen is None:
+            self.prepare(dictionaries)
+            phrase, _ = min(of_class, key=lambda pd: self.distance(pd[1].strip_skip_words(heard) or heard, pd[0], pd[1]))
+            chosen = Hypothesis(phrase.text, None, None)
+        rest = tuple(h for h in recognition.hypotheses if h is not chosen)
+        return top, replace(recognition, hypotheses=(chosen, *rest))
+
+    def _ear_veto_reason(self, recognition: Recognition, best: Candidate) -> str:
+        """An action the domain ear gives less than ``veto`` is not taken: it heard something else."""
+        ear = ear_evidence(recognition.extra)
+        limit = ear_limits(recognition.engine, self.thresholds_path, recognition.lang).get("veto")
+        if not ear or limit is None or ear.get(best.phrase.action, 0.0) >= limit:
+            return ""
+        top = max(ear, key=ear.__getitem__)
+        said = "other speech" if top == EAR_NONE else top
+        return (f"unsure: heard '{recognition.transcript or best.text}' as '{best.phrase.text}', but the domain ear "
+                f"heard {said} ({ear[top]:.0%}; {best.phrase.action} {ear.get(best.phrase.action, 0.0):.0%})")
 
     def _weak_match_reason(self, recognition: Recognition, best: Candidate) -> str:
         """What the engine itself heard must share the sounds of the phrase it is matched to (``min_shared``).
@@ -345,9 +408,11 @@ class Matcher:
         beyond = recognition.extra.get("speech_beyond_s")
         return limit is not None and beyond is not None and beyond > limit
 
-    def _evidence_reason(self, recognition: Recognition) -> str:
+    def _evidence_reason(self, recognition: Recognition, waived: frozenset[str] = frozenset()) -> str:
         for key, limit in evidence_limits(recognition.engine, self.thresholds_path, recognition.lang).items():
             kind, _, name = key.partition("_")
+            if name in waived:
+                continue
             value = recognition.extra.get(name)
             if value is None:
                 continue
@@ -375,6 +440,9 @@ class Matcher:
         return Decision(action=None, text=text, phrase=phrase, lang=lang, score=score, reason=reason,
                         matcher=self.name)
 
+
+#: the engine evidence a class vouched for by the domain ear is not refused on (Recognition.extra names)
+EAR_WAIVES = frozenset({"margin", "class_gap", "free_logprob"})
 
 #: the one class a negation does not refuse: "don't stop" stopping costs a pause, a refused stop a wall
 ALWAYS_SAFE = "stop"

@@ -15,7 +15,7 @@ from typing import Any
 from gcs_voice.errors import GcsVoiceError
 
 __all__ = ["THRESHOLDS_PATH", "ThresholdsError", "load_thresholds", "matcher_thresholds", "evidence_limits",
-           "transcript_limits"]
+           "transcript_limits", "ear_limits"]
 
 THRESHOLDS_PATH = Path(__file__).resolve().parent / "thresholds.toml"
 
@@ -79,4 +79,16 @@ def transcript_limits(engine: str | None, path: Path = THRESHOLDS_PATH, lang: st
     limits = _numbers(table, f"transcript.{engine}")
     if lang:
         limits.update(_numbers(table.get("lang", {}).get(lang, {}), f"transcript.{engine}.lang.{lang}"))
+    return limits
+
+
+def ear_limits(engine: str | None, path: Path = THRESHOLDS_PATH, lang: str | None = None) -> dict[str, float]:
+    """How the domain ear's evidence weighs in the decision (``[ear.<engine>]``, ``[ear.<engine>.lang.<lang>]``):
+    ``vouch``, ``veto``; empty when the engine's decisions take no ear."""
+    if not engine:
+        return {}
+    table = load_thresholds(path).get("ear", {}).get(engine, {})
+    limits = _numbers(table, f"ear.{engine}")
+    if lang:
+        limits.update(_numbers(table.get("lang", {}).get(lang, {}), f"ear.{engine}.lang.{lang}"))
     return limits
