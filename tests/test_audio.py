@@ -187,7 +187,7 @@ def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_d
     """
     from conftest import shared_path
     from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(5).permutation(len(commands))[:6]]
@@ -255,7 +255,7 @@ def _kitchen_stream(real_speech_dir, lead_s: float) -> tuple[bytes, list, float]
     """20 held-out real commands at 12 dB over the real kitchen noise, after ``lead_s`` of that noise alone."""
     from conftest import shared_path
     from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(7).permutation(len(commands))[:20]]
@@ -319,7 +319,7 @@ def test_the_stream_benchmark_counts_each_outcome_as_said() -> None:
     from pathlib import Path
 
     from tools.bench_stream import Placed, outcomes, score
-    from tools.real_speech import Recording
+    from tools.speech.real_speech import Recording
 
     def rec(action, kind="command"):
         return Recording(Path(f"/x/{action}.wav"), action, str(action), "s", "test", kind, "en")
@@ -352,7 +352,7 @@ def test_the_segmenter_says_how_far_each_voice_stood_above_the_room(real_speech_
     from conftest import shared_path
     from gcs_voice.audio.vad import RoomLevel
     from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(11).permutation(len(commands))[:10]]
@@ -377,7 +377,7 @@ def test_another_noise_seed_draws_another_segment_at_the_same_snr(real_speech_di
     """``bench_real spread`` asks how far the figures move with the noise segment drawn: the shipped seed must
     give exactly the audio the shipped figures were made from, another seed other noise under the same speech,
     at the same SNR (over the speech's voiced frames)."""
-    from tools.real_speech import NOISE_SEED, active_power, condition_audio, load_recordings, read_wav
+    from tools.speech.real_speech import NOISE_SEED, active_power, condition_audio, load_recordings, read_wav
 
     rec = next(r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command")
     speech = read_wav(rec.path).astype(np.float64)

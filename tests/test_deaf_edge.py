@@ -105,7 +105,7 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
     fly "left")."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     settings = load_sound_settings()
     spotter = load_stop_spotter(["en"])
@@ -171,7 +171,7 @@ def test_what_began_over_the_bridge_voice_is_not_acted_on_unless_it_is_a_stop(wh
     from gcs_voice.session.events import EventBus
     from gcs_voice.session.listen import VoicePipeline
     from gcs_voice.session.run import load_voice
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     recognizer, matcher, dictionaries, lang = load_voice("en", "whisper", str(whisper_model_dir), None)
     pipeline = VoicePipeline(recognizer, matcher, dictionaries, lang, EventBus(), realtime=False)

@@ -37,7 +37,7 @@ def _rejected_sentence(real_speech_dir: Path) -> Path:
     from gcs_voice.audio.sources import read_wav
     from gcs_voice.domain.text import normalize_text
     from gcs_voice.session.run import load_voice
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     recognizer, matcher, dictionaries, lang = load_voice("en", "sphinx", None, None)
     stop_phrases = {key for d in dictionaries for key, p in d.by_key.items() if p.action == "stop"}

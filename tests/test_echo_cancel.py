@@ -93,7 +93,7 @@ def test_the_first_cue_of_a_session_is_taken_down_too() -> None:
 def test_the_pilot_talking_over_the_bridge_is_kept(real_speech_dir: Path) -> None:
     """Double talk: what the canceller learns while the pilot speaks over the bridge must not eat the pilot;
     over the pilot's words the pilot stands out at least twice as clearly (3 dB) as in the raw microphone."""
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     stop = next(np.frombuffer(read_wav(r.path), "<i2").astype(np.float64)
                 for r in load_recordings(real_speech_dir, split="test") if r.action == "stop")
@@ -131,7 +131,7 @@ def test_real_stops_as_loud_as_the_bridge_voice_are_spotted_more_often(real_spee
     in the room: with the echo taken out the spotter hears clearly more of them (tools.bench_echo, +0 dB)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     settings = load_sound_settings()
@@ -220,7 +220,7 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     tools.bench_feedback_echo, and test_fewer_stops_... guards the own-echo gate."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     settings = load_sound_settings()
     cue = _cue("going left").astype("<i2").tobytes()

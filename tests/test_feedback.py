@@ -202,7 +202,7 @@ def test_the_bridge_does_not_hear_its_own_voice_but_would_without_the_gate() -> 
 def test_a_real_stop_said_over_the_bridge_voice_is_spotted(real_speech_dir: Path) -> None:
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     stops = [read_wav(r.path) for r in load_recordings(real_speech_dir, split="test") if r.action == "stop"]
@@ -356,7 +356,7 @@ def test_the_bridge_waits_for_the_pilot_to_finish_a_word_before_it_speaks(real_s
     """A cue begun over a word makes the microphone deaf mid-word: the word is cut in two (a stop so cut was
     heard by neither half in a live session). The bridge waits for the segmenter to close the pilot's utterance,
     and the word is heard whole; with no wait, the same word is cut (so this test can fail)."""
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     word = read_wav(next(r.path for r in load_recordings(real_speech_dir, split="test") if r.action == "go_forward"))
     utterances, done_t, cue_t, _bus = _cue_begun_while_the_pilot_speaks(word, 2.0)

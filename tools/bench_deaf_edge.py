@@ -42,7 +42,7 @@ from gcs_voice.audio.vad import segment_utterances
 from gcs_voice.session.feedback import load_sound_settings
 from tools.bench_echo import room_response, voiced_dbfs
 from tools.bench_stream import voiced_level
-from tools.real_speech import SHARED, load_recordings, read_wav
+from tools.speech.real_speech import SHARED, load_recordings, read_wav
 
 PILOT_DBFS = -26.0
 DELAY_S = 0.06

@@ -4,7 +4,7 @@
 While the bridge speaks (``--feedback speech``) the segmenter is deaf and only the stop spotter listens
 (gcs_voice/audio/microphone.py). The spotter then hears the pilot's "stop" mixed with the bridge's words
 as a speaker beside the microphone returns them. For every real held-out "stop" of ../shared/speech
-(``tools.real_speech.load_recordings(split="test")``) that the spotter hears alone, this mixes the
+(``tools.speech.real_speech.load_recordings(split="test")``) that the spotter hears alone, this mixes the
 bridge's longest decision cue (the doing tone, then espeak-ng's "going forward, turning right"; the
 pilot's stop starting ``--stop-at`` seconds into it) at several levels of its voiced parts relative to
 the stop's voiced parts, delayed as ``--delay-ms`` and reverberated by a statistical room (``--rt60``,
@@ -25,7 +25,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from tools.bench_stream import voiced_level
-from tools.real_speech import SHARED, load_recordings
+from tools.speech.real_speech import SHARED, load_recordings
 
 if TYPE_CHECKING:
     from gcs_voice.asr.stop_spotter import StopSpotter

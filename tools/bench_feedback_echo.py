@@ -30,7 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_stream import SPEECH_DBFS, build_stream, choose, voiced_level, write_truth, write_wav
-from tools.real_speech import SHARED, load_recordings
+from tools.speech.real_speech import SHARED, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 RATE = 16_000

@@ -9,7 +9,7 @@ recording (0.3 s of trailing silence included, as a segmenter would wait for it)
 end come from the session log; (b) and (c) from the session's tlog (timestamps taken when the ground
 station sent or received each packet).
 
-Corpus: the espeak-ng phrases below (two voices), or ``--corpus DIR`` made by tools/make_corpus.py
+Corpus: the espeak-ng phrases below (two voices), or ``--corpus DIR`` made by tools/speech/make_corpus.py
 (its clean English command takes). Only utterances decided as the intended action are timed.
 
     nice -n 10 python -m tools.bench_latency --out docs/bench/latency.md
@@ -54,7 +54,7 @@ GAP_S = 2.5
 
 
 def synth_corpus(out_dir: Path) -> list[tuple[Path, str]]:
-    from tools.make_demo_audio import synthesize
+    from tools.speech.make_demo_audio import synthesize
 
     items = []
     for take in range(2):
@@ -67,7 +67,7 @@ def synth_corpus(out_dir: Path) -> list[tuple[Path, str]]:
 
 
 def corpus_from_dir(corpus: Path) -> list[tuple[Path, str]]:
-    """Clean English takes from tools/make_corpus.py's manifest, in SEQUENCE's class order."""
+    """Clean English takes from tools/speech/make_corpus.py's manifest, in SEQUENCE's class order."""
     rows = list(csv.DictReader((corpus / "manifest.tsv").open(encoding="utf-8"), delimiter="\t"))
     clean = [r for r in rows if r.get("lang") == "en" and r.get("noise", "raw") == "raw"]
     by_class: dict[str, list[Path]] = {}
@@ -173,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--engines", default="sphinx,vosk,whisper", help="comma-separated engines to try")
     parser.add_argument("--whisper-model", default=str(ROOT.parent / "shared" / "models" / "faster-whisper-base"))
-    parser.add_argument("--corpus", type=Path, help="tools/make_corpus.py output folder (default: espeak-ng here)")
+    parser.add_argument("--corpus", type=Path, help="tools/speech/make_corpus.py output folder (default: espeak-ng here)")
     parser.add_argument("--out", type=Path, help="write the markdown report here")
     parser.add_argument("--keep", type=Path, help="keep tlogs and session logs in this folder")
     parser.add_argument("--repeat", type=int, default=1,

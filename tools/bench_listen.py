@@ -3,7 +3,7 @@
 ``gcs-voice --listen-wav`` hears a recording exactly as a microphone would: in real time, cut by the
 Silero segmenter, heard by the stop spotter while spoken, decided while the closing silence runs out,
 flown over MAVLink. This tool builds one long recording of held-out real speech
-(``tools.real_speech.load_recordings(split="test")``, the one speaker split of every real-speech tool)
+(``tools.speech.real_speech.load_recordings(split="test")``, the one speaker split of every real-speech tool)
 over real noise (``tools.bench_stream``'s room: all four noises of ``../shared/noise`` in turn, at 12 dB
 below the speech, one level or ``--level-spread``), with about one motion a minute: a motion command, a
 little other talk, a real "stop", then other talk (non-command words and sentences) until the next minute.
@@ -40,7 +40,7 @@ import numpy as np
 
 from tools.bench_latency import percentile
 from tools.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
-from tools.real_speech import SHARED, Recording, load_recordings
+from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 MOTIONS = ("go_forward", "go_back", "go_left", "go_right", "up", "down")

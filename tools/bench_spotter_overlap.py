@@ -19,7 +19,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from tools.bench_echo import voiced_dbfs
-from tools.real_speech import load_recordings
+from tools.speech.real_speech import load_recordings
 
 RATE = 16_000
 #: what the bridge says over the stop (the cue tools.bench_echo mixes under it)

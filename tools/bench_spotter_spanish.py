@@ -3,8 +3,8 @@
 The stop spotter (PocketSphinx keyword search, gcs_voice/asr/stop_spotter.py) is the fast stop path: it stops the
 vehicle before Whisper has decided. It hears only the words in ``stop_spotter.toml`` ``[es] words``, each spelt in
 the English model's phones. This tool says, word by word, what each candidate word catches and what it fires on
-that is no stop, over the synthetic Spanish of ``python -m tools.bench_spanish`` (every phrase of
-dictionaries/es.toml and the Spanish sentences of tools/corpus_sentences.toml, six espeak-ng voices, clean and over
+that is no stop, over the synthetic Spanish of ``python -m tools.speech.bench_spanish`` (every phrase of
+dictionaries/es.toml and the Spanish sentences of tools/speech/corpus_sentences.toml, six espeak-ng voices, clean and over
 the real noises at 12 dB; three voices dev, three test):
 
 - a *hit*: a stop phrase ("pare", "detener", "quédate quieto", ...) on which any word of the set fired;
@@ -27,8 +27,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tools import bench_spanish as bs
-from tools.bench_real import pct
+from tools.speech import bench_spanish as bs
+from tools.speech.bench_real import pct
 
 REPO = Path(__file__).resolve().parent.parent
 SETTINGS = REPO / "gcs_voice" / "asr" / "stop_spotter.toml"
@@ -93,7 +93,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = ["# The stop spotter in Spanish (synthetic speech)", "",
              f"Command: `python -m tools.bench_spotter_spanish"
              + (f" --sweep {args.sweep} --every {args.every}` (first table: the shipped threshold)" if args.sweep else "`")
-             + ". The utterances of `python -m tools.bench_spanish` "
+             + ". The utterances of `python -m tools.speech.bench_spanish` "
              f"(espeak-ng, {len(bs.VOICES)} voices, clean and 12 dB); dev and test voices as there. Threshold as "
              f"shipped ({settings['threshold']:g}), not over the bridge's voice. **Synthetic speech: real Spanish "
              "stops have not been measured here.**", "",

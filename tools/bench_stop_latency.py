@@ -7,7 +7,7 @@ the machine). The session hears one recording as its microphone would: played in
 segmenter, heard by the stop spotter while spoken, recognised while the closing silence runs out. The
 recording alternates a motion (a bundled demo recording: forward, left, climb, descend, each a motion
 through space) with a real recorded "stop" from the held-out test part of ``../shared/speech``
-(``tools.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
+(``tools.speech.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
 has none of its own), 2 s of silence after each, every stop at the same speech level.
 ``--conditions clean,kitchen12`` flies one session per condition: under a noisy condition that real noise
 runs under the whole recording at that SNR below the speech (``tools.bench_stream.under_noise``: the
@@ -43,7 +43,7 @@ import numpy as np
 from tools.bench_latency import percentile
 from tools.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
-from tools.real_speech import CONDITIONS, SHARED, Recording, load_recordings
+from tools.speech.real_speech import CONDITIONS, SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 #: motions through space (a turn only rotates the vehicle: nothing for a stop to stop)
@@ -205,7 +205,7 @@ def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
         "the session hears one recording as its microphone would (`--listen-wav`: real time, the Silero "
         "segmenter, the stop spotter while the word is spoken).",
         "Stops: the real \"stop\" recordings of the held-out test split of `../shared/speech` "
-        "(`python -m tools.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
+        "(`python -m tools.speech.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
         "descend, at the demo recordings' own level), every stop at -26 dBFS over its voiced frames; under a noise "
         "condition (kitchen12: the real kitchen recording of ../shared/noise) the noise runs under the whole "
         "recording 12 dB below the stops' level, as in `tools.bench_stream`, so the motions are said in it too. "

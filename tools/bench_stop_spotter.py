@@ -1,7 +1,7 @@
 """The stop spotter on real speech: hits on real "stop", false alarms on everything else, decoding time.
 
 Sweeps the spotter's ``kws_threshold`` on the dev part of ``../shared/speech`` (the speaker split of
-``tools.real_speech.load_recordings``, the one split of every real-speech tool; this file has none of its
+``tools.speech.real_speech.load_recordings``, the one split of every real-speech tool; this file has none of its
 own), picks the largest threshold (fewest false alarms) whose hit rate on the dev "stop" recordings
 reaches ``--min-hit`` in every swept condition (a stop must not be late; a false stop only pauses), and
 reports that threshold on the test part, which the choice never saw, clean and over real kitchen noise
@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_stream import NOISE_FILES, read_wav, voiced_level
-from tools.real_speech import SHARED, Recording, load_recordings
+from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 THRESHOLDS = (1e-15, 1e-20, 1e-25, 1e-30)
 
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
         "",
         "Spotter: PocketSphinx keyword spotting, English model of the pocketsphinx wheel, the English stop words "
         f"({', '.join(words) if words else 'gcs_voice/asr/stop_spotter.toml'}), each recording decoded whole. Corpus: `../shared/speech`, split by "
-        "speaker (`python -m tools.real_speech`: 60 % dev, 40 % test); dev picks the threshold (largest with "
+        "speaker (`python -m tools.speech.real_speech`: 60 % dev, 40 % test); dev picks the threshold (largest with "
         "a stop hit rate "
         f">= {100 * args.min_hit:g} % in the swept conditions: **{chosen:g}**), test reports it. Kitchen = "
         "`../shared/noise/doing_the_dishes.wav` at 12 dB SNR over the voiced frames. Hits: the spotter fires "

@@ -2,7 +2,7 @@
 
 A microphone in a room hears commands and other talk at random pauses, over noise that never stops,
 from people at different distances, for a whole flight. This builds such streams from the held-out test
-part of the real recordings: ``../shared/speech`` as ``tools.real_speech.load_recordings(split="test")``
+part of the real recordings: ``../shared/speech`` as ``tools.speech.real_speech.load_recordings(split="test")``
 splits it, the one speaker split of every real-speech tool (this file has no split of its own), so no
 speaker heard here was heard by any tuning. It mixes them over the real noises of ``../shared/noise`` (one
 noise, or ``mixed``: the four in turn, changing every ``--noise-change-s`` seconds with a 1 s crossfade)
@@ -48,7 +48,7 @@ import numpy as np
 
 from gcs_voice.audio.vad import VAD_SETTINGS_PATH, load_vad_settings
 from gcs_voice.session.listen import LOUD_ROOM_REPEAT_S, loud_room_hint
-from tools.real_speech import SHARED, Recording, load_recordings
+from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parent.parent
 RATE = 16_000
@@ -609,7 +609,7 @@ def main(argv: list[str] | None = None) -> int:
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         "Each stream: real utterances from the "
-        + ("held-out test part of `../shared/speech` (the test split of `python -m tools.real_speech`, speakers no "
+        + ("held-out test part of `../shared/speech` (the test split of `python -m tools.speech.real_speech`, speakers no "
            "tuning heard; " if args.split == "test" else "dev part of `../shared/speech` (the split settings are "
            "chosen on; ") + "70 % commands, "
         "15 % non-command words, 15 % sentences), "

@@ -26,7 +26,7 @@ from pathlib import Path
 
 from gcs_voice.session.flight_log import read_flight
 from gcs_voice.session.sim_process import free_udp_port
-from tools.make_demo_audio import synthesize
+from tools.speech.make_demo_audio import synthesize
 from tools.soak_two_stations import PX4_START, SITL_START, _start_sitl
 
 REPO = Path(__file__).resolve().parent.parent

@@ -4,7 +4,7 @@ Silero is a recurrent network; carried across minutes of noise its state drifts 
 crosses the start threshold (``gcs_voice.audio.vad.SileroVad``). ``memory_s`` bounds what it remembers.
 Too long and the drift comes back; too short and the network has too little of the room to tell a clatter
 or a miaow from a voice. This builds streams like ``tools.bench_stream`` (real noise under all of it at
-12 dB) from the dev part of ``../shared/speech`` (``tools.real_speech.load_recordings(split="dev")``: never
+12 dB) from the dev part of ``../shared/speech`` (``tools.speech.real_speech.load_recordings(split="dev")``: never
 the test speakers the benchmarks report on), two ways: a talkative room (pauses 1.5-4 s, levels ±6 dB) and
 a pilot who speaks now and then (pauses 5-40 s: long noise without speech, where the drift shows), and
 segments each with every ``memory_s``. No recogniser runs: this counts utterances the segmenter cut
@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_stream import NOISE_FILES, choose, lay_clips, noise_track, overlaps, read_wav
-from tools.real_speech import SHARED, load_recordings
+from tools.speech.real_speech import SHARED, load_recordings
 
 #: (name, pauses s, level spread dB, utterances)
 ROOMS = (("talkative", (1.5, 4.0), 6.0, 120), ("sparse", (5.0, 40.0), 0.0, 60))

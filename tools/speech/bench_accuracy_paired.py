@@ -4,8 +4,8 @@
 on every 3rd file only, its cells are not comparable with the others'. This prints one markdown table
 of the default matcher's decisions on the files BOTH engines have cached (test split + real voices).
 
-    python -m tools.bench_accuracy_paired whisper whisper-score
-    python -m tools.bench_accuracy_paired whisper whisper-score --min-confidence 0.5,0.9,0.99
+    python -m tools.speech.bench_accuracy_paired whisper whisper-score
+    python -m tools.speech.bench_accuracy_paired whisper whisper-score --min-confidence 0.5,0.9,0.99
 
 ``--min-confidence`` adds the LAST engine once per value of the matcher's min_confidence (a
 trade-off curve on the same files, not a tuned result).
@@ -17,9 +17,9 @@ import argparse
 import sys
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
-from tools import bench_accuracy_data as bench
+from tools.speech import bench_accuracy_data as bench
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER
 

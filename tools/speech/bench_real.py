@@ -1,11 +1,11 @@
 """Real people: the voice front-end on ../shared/speech, clean and under real noise, split by speaker.
 
-Three stages, all on the real recordings of ``tools.real_speech`` (split by speaker: thresholds are
+Three stages, all on the real recordings of ``tools.speech.real_speech`` (split by speaker: thresholds are
 chosen on ``dev`` and reported on ``test``, which tuning never sees):
 
-    python -m tools.bench_real recognise --engine whisper-score      # cache recognitions, every condition
-    python -m tools.bench_real tune --engine whisper-score --write   # choose thresholds on dev
-    python -m tools.bench_real report                                # docs/bench/real.md from the caches
+    python -m tools.speech.bench_real recognise --engine whisper-score      # cache recognitions, every condition
+    python -m tools.speech.bench_real tune --engine whisper-score --write   # choose thresholds on dev
+    python -m tools.speech.bench_real report                                # docs/bench/real.md from the caches
 
 ``recognise`` streams every file (under every condition: clean; kitchen at 20/12/6 dB; tap, machine and
 voices-with-cat at 12 dB) through the engine exactly as ``gcs-voice recognize`` does, and caches the
@@ -22,16 +22,16 @@ transcript would cost and save, on dev and test.
 report) the most any threshold of the rule could keep within the targets, chosen on the test split itself: an upper
 bound that tells whether better thresholds or a better model is what is missing.
 
-Every noisy file gets one segment of its noise (``tools.real_speech.NOISE_SEED``); ``spread`` draws others and
+Every noisy file gets one segment of its noise (``tools.speech.real_speech.NOISE_SEED``); ``spread`` draws others and
 says how far each figure moves with the draw, so that a difference smaller than that is not read as a change:
 
-    python -m tools.bench_real spread --seeds 1,2,3,4 --out docs/bench/real_spread.md
+    python -m tools.speech.bench_real spread --seeds 1,2,3,4 --out docs/bench/real_spread.md
 
 Another model (a stronger Whisper, say) is a variant, kept in its own cache and never mixed with the shipped one:
 
-    python -m tools.bench_real recognise --model PATH/faster-whisper-small --tag small
-    python -m tools.bench_real tune --tag small          # its own thresholds, on dev
-    python -m tools.bench_real frontier --tag small      # what it could reach on test
+    python -m tools.speech.bench_real recognise --model PATH/faster-whisper-small --tag small
+    python -m tools.speech.bench_real tune --tag small          # its own thresholds, on dev
+    python -m tools.speech.bench_real frontier --tag small      # what it could reach on test
 """
 
 from __future__ import annotations
@@ -56,9 +56,9 @@ from gcs_voice.domain.text import normalize_text
 from gcs_voice.understanding import get_matcher
 from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
 from tools.cpu_steal import CpuSample, busy_loops
-from tools.real_speech import CONDITIONS, NOISE_SEED, SHARED, Recording, condition_audio, load_recordings
+from tools.speech.real_speech import CONDITIONS, NOISE_SEED, SHARED, Recording, condition_audio, load_recordings
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 CACHE_DIR = REPO / "out" / "bench" / "real"
 DOC = REPO / "docs" / "bench" / "real.md"
 VARIANTS_DOC = REPO / "docs" / "bench" / "real_variants.md"
@@ -404,7 +404,7 @@ def frontier(engine: str = "whisper-score") -> str:
              f"{', '.join(str(g) for g in FRONTIER_GRID['min_class_gap'][1:])} or none.",
              "Margin only: the best-scored phrase acted on when its margin is at least a threshold, nothing else",
              "(a single-threshold phrase scorer). Ranked first: any rule's ceiling.",
-             "Command: `python -m tools.bench_real frontier` (also written by `report`).", "",
+             "Command: `python -m tools.speech.bench_real frontier` (also written by `report`).", "",
              "| condition | shipped thresholds | shipped rule, best thresholds | margin only, best threshold | "
              "right class ranked first |", "| --- | --- | --- | --- | --- |"]
     for cond in conditions:
@@ -499,7 +499,7 @@ def guard(write: bool, engine: str = "whisper-score") -> str:
              f"Chosen: the strictest value that costs at most {GUARD_COST:.0%} of the dev commands right more than 0.01",
              "(0 %: a stricter guard than no sound shared only where it costs no English dev command)",
              f"({', '.join(conditions)} together: {commands} commands).",
-             "Command: `python -m tools.bench_real guard`.", "",
+             "Command: `python -m tools.speech.bench_real guard`.", "",
              "| min_shared | split | " + " | ".join(conditions) + " |", "| --- | --- |" + " --- |" * len(conditions)]
     for value in GUARD_GRID:
         for s in ("dev", "test"):
@@ -536,7 +536,7 @@ def gate(engine: str = "whisper-score") -> str:
              "`[evidence.whisper-score] min_free_logprob`: Whisper's own transcript, teacher-forced, must have at least",
              "this mean token log-probability, or nothing acts. Each cell: commands right, wrong actions, non-commands",
              f"acted on, summed over {', '.join(conditions)} (per split: the number of commands in brackets).",
-             f"Shipped: {shipped}. Command: `python -m tools.bench_real gate`.", "",
+             f"Shipped: {shipped}. Command: `python -m tools.speech.bench_real gate`.", "",
              "| min_free_logprob | dev right | dev wrong | dev non-commands acted on | test right | test wrong | "
              "test non-commands acted on |", "| --- | --- | --- | --- | --- | --- | --- |"]
     with tempfile.TemporaryDirectory() as tmp:
@@ -574,8 +574,8 @@ def second_ear(engine: str = "whisper-score") -> str:
              "none of them Whisper's class). Each cell: commands Whisper gets right that the veto would lose, and its",
              "wrong actions (commands and non-commands acted on) that the veto would remove, of all of them; summed over "
              f"{', '.join(GATE_CONDITIONS)}.",
-             f"Command: `python -m tools.bench_real recognise --engine sphinx` beside the Whisper recognitions, then "
-             "`python -m tools.bench_real second-ear`.", "",
+             f"Command: `python -m tools.speech.bench_real recognise --engine sphinx` beside the Whisper recognitions, then "
+             "`python -m tools.speech.bench_real second-ear`.", "",
              "| split | right acted on | right lost (best) | right lost (n-best) | wrong acted on | wrong removed (best) "
              "| wrong removed (n-best) |", "| --- | --- | --- | --- | --- | --- | --- |"]
     for name in ("dev", "test"):
@@ -631,10 +631,10 @@ def spread(seeds: list[int], conditions: list[str], split: str = "test") -> str:
     head = " | ".join(f"seed {s}" + (" (shipped)" if s == NOISE_SEED else "") for s in seeds)
     lines = ["## The noise segment drawn", "",
              f"Each file of the {split} split mixed with another segment of the same noise at the same SNR "
-             f"(`tools.real_speech.mix`, seed {', '.join(map(str, seeds))}), decided with the shipped thresholds. "
+             f"(`tools.speech.real_speech.mix`, seed {', '.join(map(str, seeds))}), decided with the shipped thresholds. "
              "Each cell: commands right, wrong actions, non-commands acted on, right class ranked first. The shipped "
              "figures are the first draw: a difference smaller than the spread of its row may be the draw.",
-             f"Command: `python -m tools.bench_real spread --seeds {','.join(map(str, seeds[1:]))} --split {split}`.", "",
+             f"Command: `python -m tools.speech.bench_real spread --seeds {','.join(map(str, seeds[1:]))} --split {split}`.", "",
              f"| condition | {head} | commands right, lowest to highest |",
              "| --- | " + " | ".join("---" for _ in seeds) + " | --- |"]
     for cond in conditions:
@@ -649,9 +649,9 @@ def spread(seeds: list[int], conditions: list[str], split: str = "test") -> str:
 def report(engines: list[str]) -> str:
     test = load_recordings(split="test")
     lines = ["# Real people: the voice front-end on real recordings", "",
-             "Generated by `python -m tools.bench_real report` from the caches of `python -m tools.bench_real recognise`.",
+             "Generated by `python -m tools.speech.bench_real report` from the caches of `python -m tools.speech.bench_real recognise`.",
              "Corpus: ../shared/speech (real English speakers; see its README), **test split** (speakers that tuning never saw:",
-             "`python -m tools.real_speech`), clean and mixed with the real noises of ../shared/noise at the SNR named",
+             "`python -m tools.speech.real_speech`), clean and mixed with the real noises of ../shared/noise at the SNR named",
              "(speech level over its voiced frames). Matcher: phonetic with `gcs_voice/understanding/thresholds.toml`.",
              "Commands right = the right class; wrong = another class acted on; non-commands acted on = any action on",
              "a non-command word or a spoken sentence. Right class ranked first = the engine's best-scored phrase was",
@@ -674,7 +674,7 @@ def report(engines: list[str]) -> str:
                          f"{pct(c.words_acted, c.words)} | {pct(c.sentences_acted, c.sentences)} | "
                          f"{pct(c.ranked_first, c.commands)} | {p50:.0f} / {p95:.0f} ms |")
         lines += ["", "Decision time: from the end of the audio to the recognition, as recorded while the cache was made"
-                  " (the machine was loaded by other work; `python -m tools.bench_real timing` measures it idle).", "",
+                  " (the machine was loaded by other work; `python -m tools.speech.bench_real timing` measures it idle).", "",
                   "Settings tried and not taken, on the dev split: [real_variants.md](real_variants.md).", ""]
         if engine in TUNED:
             lines += [frontier(engine), "", guard(False, engine), "", gate(engine), ""]
@@ -710,10 +710,10 @@ def variants_report(engine: str = "whisper-score") -> str | None:
     matcher = get_matcher(MATCHER)
     shipped = shipped_setting(engine)
     lines = [f"# Variants tried ({engine}, dev split)", "",
-             "Generated by `python -m tools.bench_real report` when variant caches exist (out/bench/real/"
+             "Generated by `python -m tools.speech.bench_real report` when variant caches exist (out/bench/real/"
              f"{engine}-TAG.jsonl; not in git: they are made on the machine that reports them); corpus and "
              "conditions as in [real.md](real.md), dev split (speakers the held-out report never uses). "
-             "`shipped` is the shipped configuration. Each variant was made with `python -m tools.bench_real "
+             "`shipped` is the shipped configuration. Each variant was made with `python -m tools.speech.bench_real "
              "recognise --split dev --conditions clean,kitchen20,kitchen12 --set KEY=VALUE --tag TAG`:", ""]
     for path in variants:
         tag = path.stem.removeprefix(f"{engine}-")
@@ -726,7 +726,7 @@ def variants_report(engine: str = "whisper-score") -> str | None:
               f"the decisions on clean speech with the shipped thresholds ({', '.join(f'{k} {v}' for k, v in shipped.items())}); "
               f"tune's objective (right - {WRONG_COST} x wrong - {ACTED_COST} x non-commands acted on, over "
               f"{', '.join(TUNE_CONDITIONS)}) with the shipped thresholds, and with the thresholds `tune` would choose "
-              "for the variant itself (`python -m tools.bench_real tune --tag TAG`).", "",
+              "for the variant itself (`python -m tools.speech.bench_real tune --tag TAG`).", "",
               "| variant | right class ranked first | commands right | wrong | non-commands acted on | "
               "right class ranked first, kitchen 12 dB | objective, shipped thresholds | objective, re-chosen thresholds |",
               "| --- | --- | --- | --- | --- | --- | --- | --- |"]
@@ -782,7 +782,7 @@ def timing(engine: str, model: str | None, n: int, hogs: int = 0) -> str:
     load = os.getloadavg()[0]
     p50, p95 = statistics.median(times), float(np.percentile(times, 95))
     loaded = f", {hogs} busy-loop processes beside it" if hogs else ""
-    return (f"## Decision time, {engine}{loaded}\n\n`python -m tools.bench_real timing --engine {engine} --n {n}"
+    return (f"## Decision time, {engine}{loaded}\n\n`python -m tools.speech.bench_real timing --engine {engine} --n {n}"
             f"{f' --hogs {hogs}' if hogs else ''}`: {len(times)} "
             f"clean test-split files (commands and non-commands alternating), streamed in 100 ms chunks; time from "
             f"the end of the audio to the recognition{loaded}. Load average at the end: {load:.2f} (2 cores); {cpu.describe()}.\n\n"
@@ -873,7 +873,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
     load = os.getloadavg()[0]
     label = "decided while the closing silence ran out (speculation)" if speculate else "no speculation"
     return (f"## Decision time on the microphone path, {engine}, {label}\n\n"
-            f"`python -m tools.bench_real timing --live{'' if speculate else ' --no-speculate'} --engine {engine} "
+            f"`python -m tools.speech.bench_real timing --live{'' if speculate else ' --no-speculate'} --engine {engine} "
             f"--n {n}{f' --vad-settings {vad_settings}' if vad_settings else ''}`: {len(picked)} clean test-split files 1.5 s apart, fed in real time in the microphone's "
             f"{MICROPHONE_BLOCK_S * 1000:.0f} ms blocks through the Silero segmenter "
             f"and `listen.run_microphone`; {len(heard)} utterances decided, {used} of them from the speculation"
@@ -887,7 +887,7 @@ def live_timing(engine: str, model: str | None, n: int, speculate: bool = True, 
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.bench_real", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.speech.bench_real", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="stage", required=True)
     rec = sub.add_parser("recognise", help="recognise every real file under every condition (cached)")
     rec.add_argument("--engine", choices=sorted(ENGINES), default="whisper-score")
@@ -1000,7 +1000,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.stage == "frontier":
         if not load_cache("whisper-score"):
             print(f"bench_real: error: no recognitions in {cache_path('whisper-score').relative_to(REPO)} "
-                  f"(run `python -m tools.bench_real recognise{' --tag ' + args.tag if args.tag else ''}` first)",
+                  f"(run `python -m tools.speech.bench_real recognise{' --tag ' + args.tag if args.tag else ''}` first)",
                   file=sys.stderr)
             return 2
         print(frontier())

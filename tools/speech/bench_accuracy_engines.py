@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 WHISPER_MODEL = REPO.parent / "shared" / "models" / "faster-whisper-base"
 
 #: label -> registry arguments (engine, model, mode).

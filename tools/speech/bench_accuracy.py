@@ -1,6 +1,6 @@
 """Accuracy benchmark of the voice front-end: recogniser (voice-asr registry) + matcher, per noise.
 
-Two stages. ``recognise`` streams every WAV of the synthetic corpus (tools/make_corpus.py) and of the
+Two stages. ``recognise`` streams every WAV of the synthetic corpus (tools/speech/make_corpus.py) and of the
 real recordings (../shared/speech) through each engine once and caches the hypotheses, evidence and
 timings per file in ``out/bench/recognitions-<engine>.json`` (resumable; Whisper is slow here).
 ``report`` runs every matcher over the cached recognitions and writes the paper's table layout
@@ -8,9 +8,9 @@ timings per file in ``out/bench/recognitions-<engine>.json`` (resumable; Whisper
 voices, latency and real-time factor, and confusion matrices, into docs/bench/accuracy.md.
 ``tune`` sweeps the rejection thresholds on the dev split + real voices.
 
-    nice -n 10 python -m tools.bench_accuracy recognise --engines sphinx,whisper
-    python -m tools.bench_accuracy report
-    python -m tools.bench_accuracy tune --engine whisper --matcher phonetic
+    nice -n 10 python -m tools.speech.bench_accuracy recognise --engines sphinx,whisper
+    python -m tools.speech.bench_accuracy report
+    python -m tools.speech.bench_accuracy tune --engine whisper --matcher phonetic
 """
 
 from __future__ import annotations
@@ -27,10 +27,10 @@ import numpy as np
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding import MATCHERS
 
-from tools import bench_accuracy_engines as bench_engines
-from tools import bench_accuracy_report as bench_report
-from tools import make_corpus
-from tools.bench_accuracy_data import REPO, SHARED, Item, corpus_items, file_digest, fresh_cache, real_items, save_cache
+from tools.speech import bench_accuracy_engines as bench_engines
+from tools.speech import bench_accuracy_report as bench_report
+from tools.speech import make_corpus
+from tools.speech.bench_accuracy_data import REPO, SHARED, Item, corpus_items, file_digest, fresh_cache, real_items, save_cache
 
 CHUNK_S = 0.1
 

@@ -6,8 +6,8 @@ espeak-ng version with the same voice, speed and text gives the same bytes, so t
 be checked by re-running this script (``git diff --stat`` stays empty). Resampling is done here with
 numpy (linear interpolation) rather than sox, so the result does not depend on sox's version.
 
-    python -m tools.make_demo_audio            # rewrite all WAVs
-    python -m tools.make_demo_audio --check    # exit 1 if a committed WAV differs from a fresh one
+    python -m tools.speech.make_demo_audio            # rewrite all WAVs
+    python -m tools.speech.make_demo_audio --check    # exit 1 if a committed WAV differs from a fresh one
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 AUDIO_DIR = ROOT / "gcs_voice" / "session" / "demo_audio"
 RATE_HZ = 16_000
 PAD_S = 0.3  # silence before and after, as a person leaves between commands

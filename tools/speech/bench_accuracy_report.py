@@ -1,4 +1,4 @@
-"""Tables, confusion matrices and threshold sweeps for tools/bench_accuracy.py (report / tune stages)."""
+"""Tables, confusion matrices and threshold sweeps for tools/speech/bench_accuracy.py (report / tune stages)."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_accuracy_data import (
+from tools.speech.bench_accuracy_data import (
     BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, fresh_cache, is_near, recognition,
     score, voice_kind,
 )
@@ -258,7 +258,7 @@ def tune(engines: list[str], matchers: list[str], items: list[Item]) -> None:
 
 
 #: Whisper score-mode rejection setting swept by ``tune_scored`` on the synthetic corpus (a regression
-#: check: the shipped value is chosen on real speakers by ``python -m tools.bench_real tune``).
+#: check: the shipped value is chosen on real speakers by ``python -m tools.speech.bench_real tune``).
 SCORED_GRID = {
     ("evidence", "min_margin"): (-1.5, -1.2, -1.0, -0.9, -0.8, -0.7, -0.6, -0.5, -0.4, -0.3),
 }

@@ -1,6 +1,6 @@
 """Speed (and, on the side, command accuracy) of the three recognisers on this machine.
 
-    nice -n 10 python -m tools.bench_asr_speed            # writes docs/bench/asr.md
+    nice -n 10 python -m tools.speech.bench_asr_speed            # writes docs/bench/asr.md
 
 Corpora: ../shared/speech (95 real English recordings: 75 commands, 20 other words; labels.tsv) for
 Sphinx and Whisper; espeak-ng Korean for Vosk (the only Vosk model here is Korean). Decisions use the
@@ -17,7 +17,7 @@ import tempfile
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 
 from gcs_voice.asr import settings as asr_settings
 from gcs_voice.asr.registry import load_recognizer
@@ -110,7 +110,7 @@ def main() -> None:
     lines = [
         "# Recogniser speed on this machine",
         "",
-        f"Command: `nice -n 10 python -m tools.bench_asr_speed` (matcher: `{DEFAULT_MATCHER}`; 2 shared cores,",
+        f"Command: `nice -n 10 python -m tools.speech.bench_asr_speed` (matcher: `{DEFAULT_MATCHER}`; 2 shared cores,",
         "other jobs running, so absolute times are pessimistic). Corpus: `../shared/speech` (75 commands of",
         "5 classes + 20 other words, real speakers) unless said; Vosk on espeak-ng Korean dictionary words.",
         "",
