@@ -186,7 +186,7 @@ def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_d
     (It does miss some quiet one-word recordings: see docs/bench/stream.md for the counts.)
     """
     from conftest import shared_path
-    from tools import bench_stream
+    from tools.listen import bench_stream
     from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
@@ -254,7 +254,7 @@ def test_a_tentative_utterance_is_the_one_yielded_when_the_silence_runs_out(tmp_
 def _kitchen_stream(real_speech_dir, lead_s: float) -> tuple[bytes, list, float]:
     """20 held-out real commands at 12 dB over the real kitchen noise, after ``lead_s`` of that noise alone."""
     from conftest import shared_path
-    from tools import bench_stream
+    from tools.listen import bench_stream
     from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
@@ -294,7 +294,7 @@ def test_the_networks_memory_is_bounded(real_speech_dir):
     probabilities from then on, to the bit: the state cannot drift, whatever the room did before."""
     from conftest import shared_path
     from gcs_voice.audio.vad import SILERO_WINDOW, SileroVad
-    from tools import bench_stream
+    from tools.listen import bench_stream
 
     memory_s = load_vad_settings(method="silero").silero.memory_s
     kitchen = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav")).astype(np.float32)
@@ -313,12 +313,12 @@ def test_the_networks_memory_is_bounded(real_speech_dir):
 
 
 def test_the_stream_benchmark_counts_each_outcome_as_said() -> None:
-    """tools.bench_stream's counts: a command right, one taken for another motion (wrong), one taken for a stop (wrong,
+    """tools.listen.bench_stream's counts: a command right, one taken for another motion (wrong), one taken for a stop (wrong,
     and counted as a stop: the vehicle held), one never segmented, a sentence acted on, an action on noise alone;
     and its outcome file names each of them."""
     from pathlib import Path
 
-    from tools.bench_stream import Placed, outcomes, score
+    from tools.listen.bench_stream import Placed, outcomes, score
     from tools.speech.real_speech import Recording
 
     def rec(action, kind="command"):
@@ -351,7 +351,7 @@ def test_the_segmenter_says_how_far_each_voice_stood_above_the_room(real_speech_
     heard only as digital silence (push-to-talk up, the bridge's own sound muted out) is no room: no SNR."""
     from conftest import shared_path
     from gcs_voice.audio.vad import RoomLevel
-    from tools import bench_stream
+    from tools.listen import bench_stream
     from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]

@@ -27,7 +27,7 @@ from gcs_voice.session.feedback import FEEDBACK_DIR, Cue, cue_for, load_phrases,
 
 LANGUAGES = ("en", "es")
 #: the pilot speaks into the microphone from closer than the speaker beside it: the bridge's voice arrives this
-#: much below the pilot's (tools/bench_echo.py measures the stop spotter at other levels, 0 dB included)
+#: much below the pilot's (tools/listen/bench_echo.py measures the stop spotter at other levels, 0 dB included)
 ECHO_BELOW_PILOT_DB = 10.0
 STOP_SPOTTER_TOML = Path(__file__).resolve().parent.parent / "gcs_voice" / "asr" / "stop_spotter.toml"
 
@@ -173,8 +173,8 @@ def _listen(recording: bytes, bridge_pcm: bytes, play_at_s: float, gate: EchoGat
 
 
 def _voiced_dbfs(pcm: bytes) -> float:
-    """Level of the voiced frames (tools.bench_stream.voiced_level): speech, not its pauses."""
-    from tools.bench_stream import voiced_level
+    """Level of the voiced frames (tools.listen.bench_stream.voiced_level): speech, not its pauses."""
+    from tools.listen.bench_stream import voiced_level
 
     return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0] + 1e-9))
 
@@ -242,7 +242,7 @@ CHECKED_MODES = {"en": ("GUIDED", "RTL", "LAND", "BRAKE", "LOITER", "POSHOLD", "
 @pytest.mark.parametrize("lang", LANGUAGES)
 def test_no_cue_is_heard_as_a_stop_by_the_stop_spotter_of_its_language(lang: str) -> None:
     """The spotter listens while the bridge speaks: a cue it took for a stop would stop the vehicle (seen:
-    "fence reached" after the warning beeps was "stay" 11 times in a 30-minute session, tools/bench_feedback_echo.py).
+    "fence reached" after the warning beeps was "stay" 11 times in a 30-minute session, tools/listen/bench_feedback_echo.py).
     A session in both languages (``--lang auto``) runs both spotters: not clean yet (docs/bridge.md)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter

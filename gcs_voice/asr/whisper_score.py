@@ -290,7 +290,7 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
             chosen[-1] = command
     # At least one rival is scored: when every form chosen says one class ("Black." for a "left" said in a
     # kitchen: "back", "go back", "move back", "backwards"), no other class was judged, the class gap read as
-    # infinite and the weakest evidence acted (python -m tools.bench_stream --room --split dev: go_back for
+    # infinite and the weakest evidence acted (python -m tools.listen.bench_stream --room --split dev: go_back for
     # "left", twice). The best-ranked form of another class (or a not-command) takes the last place that is
     # not the command Whisper wrote.
     classes = {forms.phrases[i].action for i in chosen}

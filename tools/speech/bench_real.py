@@ -957,7 +957,7 @@ def main(argv: list[str] | None = None) -> int:
         return tune(args.engine, args.write)
     if args.stage == "timing":
         if args.live and args.hogs:
-            parser.error("--hogs loads the file timing; the microphone path under load is tools.bench_stop_latency")
+            parser.error("--hogs loads the file timing; the microphone path under load is tools.listen.bench_stop_latency")
         model = args.model if args.engine.startswith("whisper") else None
         text = (live_timing(args.engine, model, args.n, not args.no_speculate, args.vad_settings) if args.live
                 else timing(args.engine, model, args.n, args.hogs))

@@ -19,11 +19,11 @@ utterance what was heard and what acted), and feeds the stream to
   10 dB above the noise around it to the end of a later one, both producing no segment and no utterance
   between them producing one either (0 when every such utterance produced one).
 
-    python -m tools.bench_stream                    # clean + kitchen 20/12/6 dB, 60 utterances each
-    python -m tools.bench_stream --noises all       # the four real noises
-    python -m tools.bench_stream --room             # the room as issue 30 sets it (see ROOM below)
-    python -m tools.bench_stream --quick            # 12 utterances, clean + kitchen 12 dB
-    python -m tools.bench_stream --vad energy       # the fallback segmenter, for comparison
+    python -m tools.listen.bench_stream                    # clean + kitchen 20/12/6 dB, 60 utterances each
+    python -m tools.listen.bench_stream --noises all       # the four real noises
+    python -m tools.listen.bench_stream --room             # the room as issue 30 sets it (see ROOM below)
+    python -m tools.listen.bench_stream --quick            # 12 utterances, clean + kitchen 12 dB
+    python -m tools.listen.bench_stream --vad energy       # the fallback segmenter, for comparison
 
 Results are cached in ``out/bench/stream/`` keyed by the stream's bytes, the command and the digest of
 the ``gcs_voice`` sources, so a rerun after no change costs nothing. Writes ``docs/bench/stream.md``
@@ -50,7 +50,7 @@ from gcs_voice.audio.vad import VAD_SETTINGS_PATH, load_vad_settings
 from gcs_voice.session.listen import LOUD_ROOM_REPEAT_S, loud_room_hint
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RATE = 16_000
 NOISE_FILES = {"kitchen": "doing_the_dishes.wav", "tap": "running_tap.wav", "machine": "exercise_bike.wav",
                "cat": "dude_miaowing.wav"}
@@ -605,7 +605,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# Live listening: continuous streams of real speech over real noise",
         "",
-        "Command: `" + " ".join(["python -m tools.bench_stream",
+        "Command: `" + " ".join(["python -m tools.listen.bench_stream",
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         "Each stream: real utterances from the "

@@ -3,15 +3,15 @@
 Silero is a recurrent network; carried across minutes of noise its state drifts until speech no longer
 crosses the start threshold (``gcs_voice.audio.vad.SileroVad``). ``memory_s`` bounds what it remembers.
 Too long and the drift comes back; too short and the network has too little of the room to tell a clatter
-or a miaow from a voice. This builds streams like ``tools.bench_stream`` (real noise under all of it at
+or a miaow from a voice. This builds streams like ``tools.listen.bench_stream`` (real noise under all of it at
 12 dB) from the dev part of ``../shared/speech`` (``tools.speech.real_speech.load_recordings(split="dev")``: never
 the test speakers the benchmarks report on), two ways: a talkative room (pauses 1.5-4 s, levels ±6 dB) and
 a pilot who speaks now and then (pauses 5-40 s: long noise without speech, where the drift shows), and
 segments each with every ``memory_s``. No recogniser runs: this counts utterances the segmenter cut
 (commands, and all) and segments on noise alone. The recogniser's side of the choice is
-``python -m tools.bench_stream --split dev --vad-settings ...`` (docs/bench/vad_memory.md).
+``python -m tools.listen.bench_stream --split dev --vad-settings ...`` (docs/bench/vad_memory.md).
 
-    python -m tools.sweep_vad_memory --out docs/bench/vad_memory_sweep.md
+    python -m tools.listen.sweep_vad_memory --out docs/bench/vad_memory_sweep.md
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import NOISE_FILES, choose, lay_clips, noise_track, overlaps, read_wav
+from tools.listen.bench_stream import NOISE_FILES, choose, lay_clips, noise_track, overlaps, read_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
 #: (name, pauses s, level spread dB, utterances)
@@ -67,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# How long the Silero segmenter may remember: segmenter alone, dev-part streams",
         "",
-        "Command: `" + " ".join(["python -m tools.sweep_vad_memory", *(shlex.quote(a) for a in
+        "Command: `" + " ".join(["python -m tools.listen.sweep_vad_memory", *(shlex.quote(a) for a in
                                                                       (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         f"Streams of real utterances of the dev split of `../shared/speech` (seed {args.seed}; 70 % commands), the real "

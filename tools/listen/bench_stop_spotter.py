@@ -9,7 +9,7 @@ at 12 dB (speech level over its voiced frames). A hit is the spotter firing on a
 other firing is a false alarm (it costs a pause: the main decision follows and may command the motion
 again).
 
-    python -m tools.bench_stop_spotter --out docs/bench/stop.md
+    python -m tools.listen.bench_stop_spotter --out docs/bench/stop.md
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import NOISE_FILES, read_wav, voiced_level
+from tools.listen.bench_stream import NOISE_FILES, read_wav, voiced_level
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 THRESHOLDS = (1e-15, 1e-20, 1e-25, 1e-30)
@@ -59,7 +59,7 @@ def run(clips: list[Recording], pcms: list[bytes], threshold: float, words: list
 
 def mic_path(clips: list[Recording], noise: np.ndarray | None, listen_pre_roll_s: float, seed: int) -> dict:
     """The spotter as a live session runs it: the clips in one stream (1.5-3 s pauses, the noise under all of
-    it at 12 dB, ``tools.bench_stream.build_stream``), cut by the Silero segmenter, the spotter fed by its
+    it at 12 dB, ``tools.listen.bench_stream.build_stream``), cut by the Silero segmenter, the spotter fed by its
     listener from ``listen_pre_roll_s`` before each detected start. A clip counts as fired when a spotter
     session that overlaps it fired."""
     from dataclasses import replace
@@ -67,7 +67,7 @@ def mic_path(clips: list[Recording], noise: np.ndarray | None, listen_pre_roll_s
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.sources import MICROPHONE_BLOCK_S, pcm_to_chunks
     from gcs_voice.audio.vad import load_vad_settings, segment_utterances
-    from tools.bench_stream import build_stream
+    from tools.listen.bench_stream import build_stream
 
     x, placed = build_stream(clips, noise, 12.0 if noise is not None else None, seed, pause_s=(1.5, 3.0))
     pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
@@ -180,7 +180,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# The stop spotter on real speech",
         "",
-        "Command: `" + " ".join(["python -m tools.bench_stop_spotter",
+        "Command: `" + " ".join(["python -m tools.listen.bench_stop_spotter",
                                  *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         "Spotter: PocketSphinx keyword spotting, English model of the pocketsphinx wheel, the English stop words "
@@ -211,7 +211,7 @@ MIC_SECTION = "## On the microphone path"
 
 def mic_main(args: argparse.Namespace, argv: list[str] | None) -> int:
     lines = mic_report([float(v) for v in args.mic.split(",")])
-    shown = " ".join(["python -m tools.bench_stop_spotter", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
+    shown = " ".join(["python -m tools.listen.bench_stop_spotter", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
     section = "\n".join([
         MIC_SECTION,
         "",
@@ -219,7 +219,7 @@ def mic_main(args: argparse.Namespace, argv: list[str] | None) -> int:
         "",
         "The spotter as a live session runs it: every \"stop\" of a split, 20 of its sentences and 20 of its other "
         "commands, shuffled, in one stream at 1.5-3 s pauses (each at -26 dBFS over its voiced frames; kitchen12: "
-        "the real kitchen recording under the whole stream 12 dB below, `tools.bench_stream.build_stream`), cut "
+        "the real kitchen recording under the whole stream 12 dB below, `tools.listen.bench_stream.build_stream`), cut "
         "by the Silero segmenter, the spotter fed by the segmenter's listener from `listen_pre_roll_s` before "
         "each detected start (the rest of gcs_voice/audio/vad.toml as shipped). A recording counts as fired when "
         "a spotter session overlapping it fired. Dev chooses, test reports.",
@@ -229,7 +229,7 @@ def mic_main(args: argparse.Namespace, argv: list[str] | None) -> int:
         *lines, "",
     ])
     if args.out:
-        from tools.bench_stop_latency import write_section
+        from tools.listen.bench_stop_latency import write_section
 
         write_section(Path(args.out), section)
         print(f"wrote {args.out}")

@@ -4,7 +4,7 @@
 Silero segmenter, heard by the stop spotter while spoken, decided while the closing silence runs out,
 flown over MAVLink. This tool builds one long recording of held-out real speech
 (``tools.speech.real_speech.load_recordings(split="test")``, the one speaker split of every real-speech tool)
-over real noise (``tools.bench_stream``'s room: all four noises of ``../shared/noise`` in turn, at 12 dB
+over real noise (``tools.listen.bench_stream``'s room: all four noises of ``../shared/noise`` in turn, at 12 dB
 below the speech, one level or ``--level-spread``), with about one motion a minute: a motion command, a
 little other talk, a real "stop", then other talk (non-command words and sentences) until the next minute.
 
@@ -19,7 +19,7 @@ It then:
    speech and on noise alone, and the time from the end of speech (the segmenter's) to the decision and to
    the setpoint on the wire, p50 / p95.
 
-    python -m tools.bench_listen --minutes 30 --out docs/bench/listen.md
+    python -m tools.listen.bench_listen --minutes 30 --out docs/bench/listen.md
 
 Real time: a 30-minute recording takes 30 minutes. The load average before and after is in the report.
 """
@@ -39,10 +39,10 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_latency import percentile
-from tools.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
+from tools.listen.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 MOTIONS = ("go_forward", "go_back", "go_left", "go_right", "up", "down")
 #: utterances in each minute: the motion, one other, the stop, then others (at 1.5-4 s pauses, about a minute)
 PER_MINUTE = 12
@@ -205,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     false_speech = sum(len(got.actions[i]) for i in others)
     false_moves = sum(1 for i in others for a in got.actions[i] if a != "stop")
     fmt = lambda v: f"{percentile(v, .5):.0f} / {percentile(v, .95):.0f} (n={len(v)})" if v else "-"  # noqa: E731
-    shown = " ".join(["python -m tools.bench_listen", *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))])
+    shown = " ".join(["python -m tools.listen.bench_listen", *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))])
     minutes = x.size / RATE / 60
     lines = [
         "# A whole flight through the microphone path",

@@ -11,10 +11,10 @@ the real noises at 12 dB; three voices dev, three test):
 - a *false alarm*: any other utterance (another command, or a sentence) on which a word of the set fired: a
   pause, since a false stop only holds the vehicle (the main decision follows).
 
-As for English (``python -m tools.bench_stop_spotter``), the spotter trades precision for never waiting; ``--sweep``
+As for English (``python -m tools.listen.bench_stop_spotter``), the spotter trades precision for never waiting; ``--sweep``
 adds more lenient thresholds. Test voices are reported beside dev; nothing is chosen here on them.
 
-    python -m tools.bench_spotter_spanish --sweep 1e-20,1e-25,1e-30 --every 4 --out docs/bench/spotter_spanish.md
+    python -m tools.listen.bench_spotter_spanish --sweep 1e-20,1e-25,1e-30 --every 4 --out docs/bench/spotter_spanish.md
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ import numpy as np
 from tools.speech import bench_spanish as bs
 from tools.speech.bench_real import pct
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SETTINGS = REPO / "gcs_voice" / "asr" / "stop_spotter.toml"
 CACHE = REPO / "out" / "bench" / "spotter_spanish.json"
 
@@ -63,7 +63,7 @@ def fires(words: list[str], items: list[bs.Item], threshold: float) -> dict[str,
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.bench_spotter_spanish", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.listen.bench_spotter_spanish", description=__doc__.splitlines()[0])
     parser.add_argument("--out", type=Path, help="write the tables here (markdown) as well as to stdout")
     parser.add_argument("--sweep", default="", help="also these kws thresholds (comma-separated), on the stop phrases "
                         "and every --every'th other utterance")
@@ -91,7 +91,7 @@ def main(argv: list[str] | None = None) -> int:
     # catches none only adds false alarms)
     chosen = [w for w in candidates if caught([w], stops["dev"])]
     lines = ["# The stop spotter in Spanish (synthetic speech)", "",
-             f"Command: `python -m tools.bench_spotter_spanish"
+             f"Command: `python -m tools.listen.bench_spotter_spanish"
              + (f" --sweep {args.sweep} --every {args.every}` (first table: the shipped threshold)" if args.sweep else "`")
              + ". The utterances of `python -m tools.speech.bench_spanish` "
              f"(espeak-ng, {len(bs.VOICES)} voices, clean and 12 dB); dev and test voices as there. Threshold as "
@@ -118,7 +118,7 @@ def main(argv: list[str] | None = None) -> int:
               "", "Test utterances it fires on that are no stop (first 30): " + ("; ".join(false_test[:30]) or "none"), ""]
     if args.sweep:
         lines += ["## Other thresholds", "",
-                  f"Command: `python -m tools.bench_spotter_spanish --sweep {args.sweep} --every {args.every}`: every "
+                  f"Command: `python -m tools.listen.bench_spotter_spanish --sweep {args.sweep} --every {args.every}`: every "
                   f"stop phrase, and every {args.every}th other utterance (false alarms of that sample).", "",
                   "| threshold | word | dev hits | dev false alarms | test hits | test false alarms |",
                   "| --- | --- | --- | --- | --- | --- |"]

@@ -12,8 +12,8 @@ the stop's voiced parts, delayed as ``--delay-ms`` and reverberated by a statist
 (from the start of the bridge's sound): the raw microphone, and the microphone less the echo canceller's
 estimate of the cue (``gcs_voice.audio.echo_cancel``), cold and after one earlier cue. No noise.
 
-    python -m tools.bench_echo --split dev --cancel 'min_step=0.05,min_step=0.2,min_step=0.35'   # choose
-    python -m tools.bench_echo --out docs/bench/echo.md                                          # report
+    python -m tools.listen.bench_echo --split dev --cancel 'min_step=0.05,min_step=0.2,min_step=0.35'   # choose
+    python -m tools.listen.bench_echo --out docs/bench/echo.md                                          # report
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tools.bench_stream import voiced_level
+from tools.listen.bench_stream import voiced_level
 from tools.speech.real_speech import SHARED, load_recordings
 
 if TYPE_CHECKING:
@@ -35,7 +35,7 @@ RATE = 16_000
 
 
 def voiced_dbfs(x: np.ndarray) -> float:
-    """Level of the voiced frames (tools.bench_stream.voiced_level), in dBFS, of int16-scaled samples."""
+    """Level of the voiced frames (tools.listen.bench_stream.voiced_level), in dBFS, of int16-scaled samples."""
     return float(20 * np.log10(voiced_level(x / 32768.0)[0] + 1e-12))
 
 
@@ -291,7 +291,7 @@ def main(argv: list[str] | None = None) -> int:
         aligned = [f"The same cues in {args.alignments} sessions of 4 plays each, the cue's first sample anywhere in "
                    "the microphone's 32 ms block and the player's clock up to 10 ms off (as a busy machine leaves "
                    "them), the direct path 60 ms late at -26 dBFS voiced, chunk by chunk as a session feeds the "
-                   "spotter (tools.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays "
+                   "spotter (tools.listen.bench_echo.spotted_remains): stops fired over the bridge's voice, of the plays "
                    "(first: of the sessions' first plays, the canceller cold).",
                    "", "| cue | " + " | ".join(heads) + " |", "| --- | " + " | ".join("---" for _ in heads) + " |"]
         for said in args.alignment_cues.split(";"):
@@ -307,7 +307,7 @@ def main(argv: list[str] | None = None) -> int:
     false_row = "| stops fired | " + " | ".join(f"{n}/{played}" for n in false_stops) + " |"
     print(false_row, flush=True)
     corpus = "../shared/speech" if args.speech == SHARED / "speech" else str(args.speech)
-    command = (f"python -m tools.bench_echo --levels={args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
+    command = (f"python -m tools.listen.bench_echo --levels={args.levels} --delay-ms {args.delay_ms:g} --stop-at {args.stop_at:g} "
                f"--rt60 {args.rt60:g} --drr-db {args.drr_db:g} --split {args.split}"
                + (f" --cancel '{args.cancel}'" if args.cancel else "")
                + (f" --over-voice-thresholds {args.over_voice_thresholds}" if args.over_voice_thresholds else "")

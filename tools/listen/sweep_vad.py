@@ -1,13 +1,13 @@
 """Choose the Silero segmenter's start/end thresholds on streams built from the dev part of the real speech.
 
-Builds the same kind of stream as tools/bench_stream.py (60 utterances at random pauses, real noise at a
+Builds the same kind of stream as tools/listen/bench_stream.py (60 utterances at random pauses, real noise at a
 measured SNR) from the dev part of ``../shared/speech``: ``tools.speech.real_speech.load_recordings(split="dev")``,
 the one speaker split of every real-speech tool (this file has no split of its own), never the test
 speakers that bench_stream reports on. It segments it with each start/end threshold pair and counts:
 segments, utterances found as exactly one segment, utterances missed (no segment), and segments on noise
 alone. No recogniser runs: this is the segmenter only. The chosen pair goes in ``gcs_voice/audio/vad.toml``.
 
-    python -m tools.sweep_vad --out docs/bench/vad_sweep.md
+    python -m tools.listen.sweep_vad --out docs/bench/vad_sweep.md
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import NOISE_FILES, build_stream, choose, read_wav
+from tools.listen.bench_stream import NOISE_FILES, build_stream, choose, read_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
 PAIRS = ((0.5, 0.35), (0.4, 0.25), (0.3, 0.2), (0.2, 0.12))
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# Silero segmenter thresholds on dev-part streams",
         "",
-        "Command: `" + " ".join(["python -m tools.sweep_vad", *(shlex.quote(a) for a in
+        "Command: `" + " ".join(["python -m tools.listen.sweep_vad", *(shlex.quote(a) for a in
                                                                (argv if argv is not None else sys.argv[1:]))]) + "`",
         "",
         f"One stream of 60 utterances from the dev split of `../shared/speech` (`python -m tools.speech.real_speech`; "

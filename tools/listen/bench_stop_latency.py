@@ -10,18 +10,18 @@ through space) with a real recorded "stop" from the held-out test part of ``../s
 (``tools.speech.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
 has none of its own), 2 s of silence after each, every stop at the same speech level.
 ``--conditions clean,kitchen12`` flies one session per condition: under a noisy condition that real noise
-runs under the whole recording at that SNR below the speech (``tools.bench_stream.under_noise``: the
+runs under the whole recording at that SNR below the speech (``tools.listen.bench_stream.under_noise``: the
 stream benchmark's room), so the motions are said in the noise too.
 
 For each stop: the end of speech is the end of the stop recording's voiced frames (25 dB below its peak,
-``tools.bench_stream.voiced_level``) on the wall clock of the playback (the session logs when its first
+``tools.listen.bench_stream.voiced_level``) on the wall clock of the playback (the session logs when its first
 sample played); the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire after the
 recording began that stays so until the next motion is said (the session's tlog): a pause that was resumed
 is no stop. Each is put down to what sent it: the stop spotter, the pause while the utterance is decided
 (kept by the decision), or the main decision. A stop said to a vehicle that was not moving (its motion
 was not heard) is counted apart.
 
-    python -m tools.bench_stop_latency --engines sphinx,whisper --conditions clean,kitchen12 --out docs/bench/latency.md
+    python -m tools.listen.bench_stop_latency --engines sphinx,whisper --conditions clean,kitchen12 --out docs/bench/latency.md
 
 ``--out`` replaces this benchmark's section ("## Stop latency with both cores loaded") in that file, or
 appends it: the rest of the file (tools/bench_latency.py's tables) stays.
@@ -41,11 +41,11 @@ from pathlib import Path
 import numpy as np
 
 from tools.bench_latency import percentile
-from tools.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
+from tools.listen.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
 from tools.speech.real_speech import CONDITIONS, SHARED, Recording, load_recordings
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 #: motions through space (a turn only rotates the vehicle: nothing for a stop to stop)
 MOTIONS = ("go_forward", "move_left", "climb", "go_down")
 GAP_S = 2.0
@@ -67,7 +67,7 @@ class Stream:
 def build_stream(recordings: list[Recording], condition: str, path: Path) -> Stream:
     """Motion, 2 s, stop, 2 s, ... as one WAV, the stops at the same speech level (a person at a steady
     distance), and under a noisy ``condition`` its noise under the whole stream at its SNR below that level, as
-    ``tools.bench_stream`` lays it (a room is noisy between the words too). The motions keep their own
+    ``tools.listen.bench_stream`` lays it (a room is noisy between the words too). The motions keep their own
     (louder) level: they are there to be stopped, and one not heard leaves nothing to stop."""
     gap = np.zeros(int(GAP_S * RATE))
     parts: list[np.ndarray] = [np.zeros(int(LEAD_S * RATE))]
@@ -186,7 +186,7 @@ def analyse(jsonl: Path, tlog: Path, stream: Stream) -> Result:
 
 def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
            rows: list[tuple[str, str, Result, tuple[str, str]]], work: Path) -> int:
-    shown = " ".join(["python -m tools.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
+    shown = " ".join(["python -m tools.listen.bench_stop_latency", *(shlex.quote(a) for a in (argv or sys.argv[1:]))])
     fmt = lambda v: f"{percentile(v, .5):.0f} | {percentile(v, .95):.0f}" if v else "- | -"  # noqa: E731
     path = ("main recogniser only" if args.no_spotter else "stop spotter") + ("" if args.no_pause else ", pause")
     lines = [
@@ -208,7 +208,7 @@ def report(args: argparse.Namespace, argv: list[str] | None, n_stops: int,
         "(`python -m tools.speech.real_speech`), each 2 s after a motion (a demo recording: forward, left, climb, "
         "descend, at the demo recordings' own level), every stop at -26 dBFS over its voiced frames; under a noise "
         "condition (kitchen12: the real kitchen recording of ../shared/noise) the noise runs under the whole "
-        "recording 12 dB below the stops' level, as in `tools.bench_stream`, so the motions are said in it too. "
+        "recording 12 dB below the stops' level, as in `tools.listen.bench_stream`, so the motions are said in it too. "
         "Clock origin: the end of the "
         "stop's speech (its last voiced frame, on the playback's clock); end: the first zero-velocity setpoint "
         "on the wire that stays until the next motion is said (tlog), put down to what sent it: the stop "

@@ -5,7 +5,7 @@ While the bridge speaks the segmenter is deaf and the stop spotter hears the mic
 (gcs_voice.audio.microphone). A pilot who speaks as the deaf time ends has the word cut in two: live (session
 27), a real "stop" said over the end of "fence reached" was heard by neither half. This plays real words of
 ../shared/speech so that the deaf time ends 0.1 to 0.6 s into their voice (begun in the deaf time's tail, or over the
-bridge's sound itself; and, for the cost, words said 0.1 and 0.3 s after it), over the bridge's cues in the textbook room of tools.bench_echo, through the microphone path's
+bridge's sound itself; and, for the cost, words said 0.1 and 0.3 s after it), over the bridge's cues in the textbook room of tools.listen.bench_echo, through the microphone path's
 own ear (``gcs_voice.audio.microphone._Ear``, driven offline block by block on the recording's clock), the
 session's echo canceller and PocketSphinx's stop spotter, with each way of carrying the word (``carry``):
 
@@ -18,7 +18,7 @@ Counted per word: a stop fired in any stream that overlaps it (for stops: heard;
 stop), whether the segmenter's utterance of it was marked as begun deaf, and (``--decide``) what the session's
 decision made of the utterances (Whisper base, the shipped matcher; a marked one acts only if it is a stop).
 
-    python -m tools.bench_deaf_edge --split dev --out docs/bench/deaf_edge_dev.md
+    python -m tools.listen.bench_deaf_edge --split dev --out docs/bench/deaf_edge_dev.md
 """
 
 from __future__ import annotations
@@ -40,8 +40,8 @@ from gcs_voice.audio.sources import MICROPHONE_BLOCK_S, AudioChunk, pcm_to_chunk
 from gcs_voice.audio.speaker import EchoGate
 from gcs_voice.audio.vad import segment_utterances
 from gcs_voice.session.feedback import load_sound_settings
-from tools.bench_echo import room_response, voiced_dbfs
-from tools.bench_stream import voiced_level
+from tools.listen.bench_echo import room_response, voiced_dbfs
+from tools.listen.bench_stream import voiced_level
 from tools.speech.real_speech import SHARED, load_recordings, read_wav
 
 PILOT_DBFS = -26.0
@@ -250,10 +250,10 @@ def report(trials: list[Trial], split: str, rooms: list[str], decide: bool = Fal
         return f"{sum(bool(t.marked) for t in yielded)}/{len(yielded)}"
 
     lines = ["# A word said across the end of the deaf time", "",
-             f"`python -m tools.bench_deaf_edge --split {split} --rooms {','.join(rooms)}"
+             f"`python -m tools.listen.bench_deaf_edge --split {split} --rooms {','.join(rooms)}"
              f"{' --decide' if decide else ''}` (corpus: the {split} speakers' "
              "command recordings of ../shared/speech, each at -26 dBFS voiced; the bridge's cues as loud, 60 ms late, "
-             "in the textbook room of tools.bench_echo, RT60 0.3 s; three earlier cues first (the canceller learns the "
+             "in the textbook room of tools.listen.bench_echo, RT60 0.3 s; three earlier cues first (the canceller learns the "
              "room); the shipped echo canceller "
              "and stop spotter; the microphone path's ear driven offline on the recording's clock). Offset: where "
              "the word's voice starts against the end of the deaf time (negative: before it; the bridge's sound ends "

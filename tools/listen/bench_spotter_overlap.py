@@ -1,13 +1,13 @@
 """What comes before or under a real "stop" changes whether the stop spotter hears it.
 
 Over the bridge's voice the spotter misses stops even when that voice is far quieter than the pilot
-(tools.bench_echo: a stop under the bridge's words 20 dB down is lost where the same stop alone is heard).
+(tools.listen.bench_echo: a stop under the bridge's words 20 dB down is lost where the same stop alone is heard).
 This separates the causes with no echo canceller at all: the stop alone, after half a second of silence,
 of faint white noise or of the bridge's voice at the pilot's level (nothing overlapping), with faint noise
 under it all, and with the bridge's words 10 to 40 dB below the stop overlapping it. Spotted at the usual
 threshold and at the one over the bridge's voice (gcs_voice/asr/stop_spotter.toml).
 
-    python -m tools.bench_spotter_overlap --split dev
+    python -m tools.listen.bench_spotter_overlap --split dev
 """
 
 from __future__ import annotations
@@ -18,11 +18,11 @@ from collections.abc import Iterator
 
 import numpy as np
 
-from tools.bench_echo import voiced_dbfs
+from tools.listen.bench_echo import voiced_dbfs
 from tools.speech.real_speech import load_recordings
 
 RATE = 16_000
-#: what the bridge says over the stop (the cue tools.bench_echo mixes under it)
+#: what the bridge says over the stop (the cue tools.listen.bench_echo mixes under it)
 WORDS = "going forward, turning right"
 #: how far below the stop the overlapping words are (what an echo canceller might leave of them)
 BELOW_DB = (10, 20, 30, 40)
@@ -49,7 +49,7 @@ def variants(stop: np.ndarray, voice: np.ndarray, rng: np.random.Generator) -> I
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.bench_spotter_overlap", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.listen.bench_spotter_overlap", description=__doc__.splitlines()[0])
     parser.add_argument("--split", choices=("dev", "test"), default="dev")
     args = parser.parse_args(argv)
     from gcs_voice.asr.stop_spotter import load_stop_spotter
@@ -68,7 +68,7 @@ def main(argv: list[str] | None = None) -> int:
             pcm = np.clip(np.round(x), -32768, 32767).astype("<i2").tobytes()
             usual[name] = usual.get(name, 0) + spotter.spot(pcm).fired
             over[name] = over.get(name, 0) + spotter.spot(pcm, over_voice=True).fired
-    print(f"Command: `python -m tools.bench_spotter_overlap --split {args.split}`: the real stops of the "
+    print(f"Command: `python -m tools.listen.bench_spotter_overlap --split {args.split}`: the real stops of the "
           f"{args.split} speakers of ../shared/speech ({len(stops)}), the bridge's voice espeak-ng \"{WORDS}\".\n")
     print("| the stop | spotted (usual threshold) | spotted (threshold over the bridge's voice) |")
     print("| --- | --- | --- |")

@@ -2,7 +2,7 @@
 """A long ``--listen-wav`` session with the bridge's own speech mixed back into the microphone: what it causes.
 
 Builds a stream of real speech (the held-out test speakers of ../shared/speech: commands, other words and
-sentences at random pauses, ``tools.bench_stream.build_stream``, each at the same voiced level), then flies
+sentences at random pauses, ``tools.listen.bench_stream.build_stream``, each at the same voiced level), then flies
 it once, as a user would (``python -m gcs_voice --listen-wav STREAM --takeoff 1.5 --feedback speech
 --feedback-echo=DB:MS`` against the bundled simulator in real time): every cue the bridge plays is added
 back into what it hears, ``--echo-db`` relative to the pilot's voiced level and ``--delay-ms`` late.
@@ -12,7 +12,7 @@ overlaps a placed clip of the stream (the stream is clean: nothing else is in it
 own audio. The targets: 0 actions and 0 rejections caused by the bridge's own audio. Also counted: the
 pilot's clips said while the bridge was speaking (deaf to commands then: only a stop is heard).
 
-    python -m tools.bench_feedback_echo --minutes 30 --out docs/bench/feedback_echo.md
+    python -m tools.listen.bench_feedback_echo --minutes 30 --out docs/bench/feedback_echo.md
 """
 
 from __future__ import annotations
@@ -29,10 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_stream import SPEECH_DBFS, build_stream, choose, voiced_level, write_truth, write_wav
+from tools.listen.bench_stream import SPEECH_DBFS, build_stream, choose, voiced_level, write_truth, write_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 RATE = 16_000
 #: an utterance or a spot within this of a pilot's clip is the pilot's (the segmenter's pre-roll and padding)
 MARGIN_S = 0.5
@@ -62,7 +62,7 @@ class Clip:
 
 
 def read_clips(path: Path) -> list[Clip]:
-    """The clips of a stream's truth file (``tools.bench_stream.write_truth``)."""
+    """The clips of a stream's truth file (``tools.listen.bench_stream.write_truth``)."""
     with open(path, encoding="utf-8") as f:
         return [Clip(float(r["start_s"]), float(r["end_s"]), float(r["voiced_start_s"]), float(r["voiced_end_s"]),
                      None if r["truth"] == "none" else r["truth"]) for r in csv.DictReader(f, delimiter="\t")]
@@ -83,11 +83,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", type=Path)
     args = parser.parse_args(argv)
 
-    shown = " ".join(["python -m tools.bench_feedback_echo", f"--minutes {args.minutes:g}", f"--seed {args.seed}",
+    shown = " ".join(["python -m tools.listen.bench_feedback_echo", f"--minutes {args.minutes:g}", f"--seed {args.seed}",
                       f"--echo-db {args.echo_db:g}", f"--delay-ms {args.delay_ms:g}", f"--engine {args.engine}"]
                      + ([f"--out {args.out}"] if args.out and args.reanalyse is None else []))
     if args.reanalyse is not None:
-        again = " ".join(["python -m tools.bench_feedback_echo --reanalyse", str(args.reanalyse)]
+        again = " ".join(["python -m tools.listen.bench_feedback_echo --reanalyse", str(args.reanalyse)]
                          + ([f"--seed {args.seed}"] if args.seed != 1 else []) + ([f"--out {args.out}"] if args.out else []))
         work, took = args.reanalyse, f"Counted again from the logs of an earlier run: `{again}`."
     else:
