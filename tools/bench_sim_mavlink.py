@@ -26,7 +26,7 @@ from pathlib import Path
 from pymavlink.dialects.v20 import ardupilotmega as M
 
 from gcs_voice.session.sim_process import BundledSim
-from tools.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
+from tools.flight.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
 
 REPO = Path(__file__).resolve().parent.parent
 FLIGHT_S = 60.0

@@ -38,7 +38,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_latency import percentile
+from tools.flight.bench_latency import percentile
 from tools.listen.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 

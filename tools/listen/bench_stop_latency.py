@@ -24,7 +24,7 @@ was not heard) is counted apart.
     python -m tools.listen.bench_stop_latency --engines sphinx,whisper --conditions clean,kitchen12 --out docs/bench/latency.md
 
 ``--out`` replaces this benchmark's section ("## Stop latency with both cores loaded") in that file, or
-appends it: the rest of the file (tools/bench_latency.py's tables) stays.
+appends it: the rest of the file (tools/flight/bench_latency.py's tables) stays.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.bench_latency import percentile
+from tools.flight.bench_latency import percentile
 from tools.listen.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
 from tools.speech.real_speech import CONDITIONS, SHARED, Recording, load_recordings

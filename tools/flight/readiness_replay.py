@@ -1,7 +1,7 @@
 """Print what the bridge would send at each point of a recorded boot: ``link.readiness`` over a .tlog.
 
-    python -m tools.readiness_replay ../shared/tlogs/arducopter-sitl-guided-velocity.tlog --until 43
-    python -m tools.readiness_replay ../shared/tlogs/px4-sih-offboard-velocity.tlog --until 4
+    python -m tools.flight.readiness_replay ../shared/tlogs/arducopter-sitl-guided-velocity.tlog --until 43
+    python -m tools.flight.readiness_replay ../shared/tlogs/px4-sih-offboard-velocity.tlog --until 4
 
 The vehicle's messages are fed to the state tracker one by one (the recorded ground station's own
 packets are skipped) and each change of decision is printed with its time from the first record. Open

@@ -1,6 +1,6 @@
 """Fly a fixed action sequence through ActionMapper + VehicleLink against any vehicle and measure it.
 
-    python -m tools.link_flight --connect udpin:127.0.0.1:14550 [--tlog out/flight.tlog] [--markdown]
+    python -m tools.flight.link_flight --connect udpin:127.0.0.1:14550 [--tlog out/flight.tlog] [--markdown]
 
 Works with the bundled simulator (``python -m sim_bridge.cli``), an ArduCopter or PX4 SITL, or a
 real vehicle (careful: it flies). Prints one row per step: what was commanded, how long it lasted,

@@ -8,7 +8,7 @@ reports how far from home the vehicle was when "return home" was decided, how fa
 after take-off it ended, and its height then against before; with ``--lands``, whether it showed RTL, landed
 and disarmed, and where.
 
-    python -m tools.fly_home_sitl --vehicle arducopter-sitl [--lands] [--out docs/bench/home.md]
+    python -m tools.flight.fly_home_sitl --vehicle arducopter-sitl [--lands] [--out docs/bench/home.md]
 
 Real time: a cold ArduCopter arms about 41 s after boot; the whole flight takes 2-4 minutes.
 """
@@ -27,9 +27,9 @@ from pathlib import Path
 from gcs_voice.session.flight_log import read_flight
 from gcs_voice.session.sim_process import free_udp_port
 from tools.speech.make_demo_audio import synthesize
-from tools.soak_two_stations import PX4_START, SITL_START, _start_sitl
+from tools.flight.soak_two_stations import PX4_START, SITL_START, _start_sitl
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 MODEL = REPO.parent / "shared" / "models" / "faster-whisper-base"
 RTL_MODES = {"arducopter-sitl": 6, "px4-sitl": 84148224}  # ArduCopter RTL; PX4 AUTO (4) sub RTL (5): 5 << 24 | 4 << 16
 
@@ -104,7 +104,7 @@ def fly(vehicle: str, lands: bool, work: Path, px4_start: Path = PX4_START) -> l
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.fly_home_sitl", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.flight.fly_home_sitl", description=__doc__.splitlines()[0])
     parser.add_argument("--vehicle", choices=("arducopter-sitl", "px4-sitl"), default="arducopter-sitl")
     parser.add_argument("--lands", action="store_true", help="return_home_lands = 1: the autopilot's RTL")
     parser.add_argument("--out", type=Path, help="append the report to this markdown file")
@@ -114,7 +114,7 @@ def main(argv: list[str] | None = None) -> int:
     with tempfile.TemporaryDirectory(prefix="fly-home-") as tmp:
         lines = fly(args.vehicle, args.lands, Path(tmp), args.px4_start)
     report = "\n".join([f"## {args.vehicle}, return_home_lands = {int(args.lands)}", "",
-                        f"`python -m tools.fly_home_sitl --vehicle {args.vehicle}{' --lands' if args.lands else ''}`", "",
+                        f"`python -m tools.flight.fly_home_sitl --vehicle {args.vehicle}{' --lands' if args.lands else ''}`", "",
                         *lines, ""])
     print(report)
     if args.out:

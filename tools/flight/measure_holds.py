@@ -1,7 +1,7 @@
 """Measure what the setpoint holds buy: stop error and height kept, with and without position targets.
 
-    python -m tools.measure_holds                      # both gcs-sim personalities, holds on and off
-    python -m tools.measure_holds --connect udpin:127.0.0.1:14550 --variants holds   # a SITL (it flies!)
+    python -m tools.flight.measure_holds                      # both gcs-sim personalities, holds on and off
+    python -m tools.flight.measure_holds --connect udpin:127.0.0.1:14550 --variants holds   # a SITL (it flies!)
 
 For each vehicle and variant ("holds": what gcs-voice sends, docs/link.md; "velocity": the same
 setpoints with every position target removed, type_mask 2503 throughout) it takes off to 1.5 m, then
@@ -25,7 +25,7 @@ from gcs_voice.actions.mapper import ActionMapper
 from gcs_voice.link import VehicleLink
 from gcs_voice.settings import load_settings
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 SEQUENCE = [("go_forward", 3.0), ("stop", 4.0), ("turn_right", 4.0), ("go_right", 3.0), ("stop", 4.0)]
 
 

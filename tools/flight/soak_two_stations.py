@@ -2,7 +2,7 @@
 """Two ground stations on one bundled-sim vehicle through MAVProxy, for a bounded time (issue 32's soak).
 
 gcs-sim (real time) -> MAVProxy ``--out`` to gcs-voice's bridge (key requests, no speech) and to a
-QGroundControl-like station (tools/qgc_like.py: 255/190, HEARTBEAT 1 Hz, a parameter read every 2 s).
+QGroundControl-like station (tools/flight/qgc_like.py: 255/190, HEARTBEAT 1 Hz, a parameter read every 2 s).
 Loopback only. Cycles until the time is up:
 
   voice take off -> go forward / stop / go back / stop -> the other station switches to BRAKE (or Hold)
@@ -14,8 +14,8 @@ system and component); an ACK "to the wrong station" is one a station took for a
 or more ACKs than commands (ArduPilot answers each command once). The take-over is timed from the other
 station's DO_SET_MODE to the bridge's ``takeover`` event, and to the vehicle HEARTBEAT that showed it.
 
-    nice -n 5 python -m tools.soak_two_stations --minutes 10
-    nice -n 5 python -m tools.soak_two_stations --vehicle arducopter-sitl --cycles 1   # ../shared/sitl
+    nice -n 5 python -m tools.flight.soak_two_stations --minutes 10
+    nice -n 5 python -m tools.flight.soak_two_stations --vehicle arducopter-sitl --cycles 1   # ../shared/sitl
 
 ``--vehicle arducopter-sitl`` flies the real ArduCopter SITL of ../shared/sitl instead (real time; a cold
 boot needs ~41 s before it can arm); ``--vehicle px4-sitl`` the real PX4 SITL on its own two links (gcs-voice
@@ -48,10 +48,10 @@ from gcs_voice.session.events import EventBus
 from gcs_voice.session.sim_process import BundledSim, free_udp_port
 from gcs_voice.settings import load_settings
 from tools.cpu_steal import CpuSample
-from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
+from tools.flight.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
 
 ARDUCOPTER_BRAKE, ARDUCOPTER_GUIDED = 17, 4
-SITL_DIR = Path(__file__).resolve().parent.parent.parent / "shared" / "sitl"
+SITL_DIR = Path(__file__).resolve().parents[3] / "shared" / "sitl"
 SITL_START, PX4_START = SITL_DIR / "arducopter" / "start.sh", SITL_DIR / "px4" / "start.sh"
 #: a cold ArduCopter SITL arms ~41 s after boot, PX4 SITL ~4 s; the bundled simulator at once
 TAKEOFF_TIMEOUT_S = {"gcs-sim": 90.0, "arducopter-sitl": 180.0, "px4-sitl": 90.0}

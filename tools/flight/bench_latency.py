@@ -12,7 +12,7 @@ station sent or received each packet).
 Corpus: the espeak-ng phrases below (two voices), or ``--corpus DIR`` made by tools/speech/make_corpus.py
 (its clean English command takes). Only utterances decided as the intended action are timed.
 
-    nice -n 10 python -m tools.bench_latency --out docs/bench/latency.md
+    nice -n 10 python -m tools.flight.bench_latency --out docs/bench/latency.md
 """
 
 from __future__ import annotations
@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
+ROOT = Path(__file__).resolve().parents[2]
 
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.flight_log import read_flight
@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     items = corpus_from_dir(args.corpus) if args.corpus else synth_corpus(work)
     corpus_note = (f"`{args.corpus}` (clean English takes)" if args.corpus else
                    f"espeak-ng, 2 takes x {len(SEQUENCE)} phrases ({len(items)} utterances, voices and phrases "
-                   "in tools/bench_latency.py SEQUENCE)")
+                   "in tools/flight/bench_latency.py SEQUENCE)")
     rows = []
     best: tuple[float, str, str] | None = None  # (b) p95, engine, load
     modes = [m.strip() for m in args.feedback.split(",") if m.strip()]
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
     report = "\n".join([
         "# Latency: end of utterance to action, setpoint and vehicle response",
         "",
-        "Command: `nice -n 10 python -m tools.bench_latency --engines " + args.engines
+        "Command: `nice -n 10 python -m tools.flight.bench_latency --engines " + args.engines
         + (f" --corpus {args.corpus}" if args.corpus else "") + (f" --feedback {args.feedback}" if modes != ["off"] else "")
         + (f" --repeat {args.repeat}" if args.repeat > 1 else "")
         + (f" --out {args.out}" if args.out else "") + "`",

@@ -1,6 +1,6 @@
 """Summarise a ground-station .tlog: setpoint stream timing, encodings used, modes, ACKs, link gaps.
 
-    python -m tools.link_tlog_stats FILE.tlog [FILE.tlog ...]
+    python -m tools.flight.link_tlog_stats FILE.tlog [FILE.tlog ...]
 
 Prints markdown. Works on ../shared/tlogs/*.tlog (the reference SITL captures) and on what
 ``VehicleLink(tlog_path=...)`` writes, so the bridge's stream can be compared with a known-good one.
@@ -69,7 +69,7 @@ def summarise(path: Path) -> str:
 def main(argv: list[str] | None = None) -> int:
     import argparse
 
-    parser = argparse.ArgumentParser(prog="python -m tools.link_tlog_stats", description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.flight.link_tlog_stats", description=__doc__.splitlines()[0])
     parser.add_argument("tlogs", nargs="+", type=Path, metavar="FILE.tlog")
     args = parser.parse_args(argv)
     for name in args.tlogs:

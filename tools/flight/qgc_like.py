@@ -1,5 +1,5 @@
 """A second ground station that behaves like QGroundControl on the wire (tests/test_two_stations.py,
-tools/soak_two_stations.py).
+tools/flight/soak_two_stations.py).
 
 pymavlink, system 255 component 190 (QGroundControl's and Mission Planner's identity), a GCS HEARTBEAT at
 1 Hz, a parameter read every 2 s (QGroundControl refreshes parameters it shows), and its own mode changes

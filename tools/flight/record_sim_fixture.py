@@ -1,6 +1,6 @@
 """Record the committed replay fixture: one lockstep gcs-sim flight as a .tlog.
 
-    python -m tools.record_sim_fixture [--out tests/fixtures/sim_ardupilot_guided_flight.tlog]
+    python -m tools.flight.record_sim_fixture [--out tests/fixtures/sim_ardupilot_guided_flight.tlog]
 
 A pymavlink ground station (sys 255, comp 190) asks for AUTOPILOT_VERSION, sets GUIDED, arms, takes off
 to 2 m, flies 1 m/s forward (BODY_OFFSET_NED) for 3 s, turns to 90 deg (LOCAL_NED yaw), lands.
@@ -15,7 +15,7 @@ from pathlib import Path
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 
-from tools.lockstep_gcs import VELOCITY_YAW, LockstepGcs
+from tools.flight.lockstep_gcs import VELOCITY_YAW, LockstepGcs
 
 DEFAULT_OUT = Path("tests/fixtures/sim_ardupilot_guided_flight.tlog")
 EPOCH_UNIX_S = 1795000000.0     # 2026-11-18, fixed so re-recording is deterministic
