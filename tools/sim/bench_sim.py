@@ -1,7 +1,7 @@
 """Benchmark the simulator's physics: step responses, hover hold, yaw turn, touchdowns, lockstep speed.
 
-    nice -n 10 python -m tools.bench_sim            # writes docs/bench/sim.md and docs/bench/img/sim_*.png
-    python -m tools.bench_sim --no-write            # print the figures only
+    nice -n 10 python -m tools.sim.bench_sim            # writes docs/bench/sim.md and docs/bench/img/sim_*.png
+    python -m tools.sim.bench_sim --no-write            # print the figures only
 
 Everything runs in lockstep (``Multicopter.step`` in a loop) on one core; wall time is process CPU time.
 Targets (issue): 1 m/s step reaches 90 % within 1.5 s with < 20 % overshoot; hover holds altitude within
@@ -23,7 +23,7 @@ from sim_bridge.control import ControlTarget
 from sim_bridge.multicopter import Multicopter
 from sim_bridge.world import load_room
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "bench" / "sim.md"
 IMG = REPO / "docs" / "bench" / "img"
 STEP_S = 0.02          # lockstep period used by the bench (50 Hz, like a telemetry loop)
@@ -31,7 +31,7 @@ HOVER_DOWN_M = -1.5
 DISTURB_DOWN_N = 2.0
 DISTURB_EAST_N = 1.0
 SPEED_REPEATS = 5     # the machine is shared: report the best of five
-COMMAND = "nice -n 10 python -m tools.bench_sim"
+COMMAND = "nice -n 10 python -m tools.sim.bench_sim"
 # sideways touchdowns from a 1.5 m hover: (room, mode, horizontal m or m/s, heading deg, yaw rate rad/s);
 # "vel": descend at the 2.5 m/s limit while moving sideways; "pos": a target that far away, 0.5 m underground
 TOUCHDOWNS = [(room, mode, size, heading, yaw_rate) for room in ("open_field", "living_room")
@@ -315,7 +315,7 @@ def main(argv: list[str] | None = None) -> int:
     ok = lambda good: "yes" if good else "**NO**"  # noqa: E731
     lines = [
         "# Simulator physics benchmark", "",
-        f"Produced by `{COMMAND}` (tools/bench_sim.py) on {platform.machine()}, Python "
+        f"Produced by `{COMMAND}` (tools/sim/bench_sim.py) on {platform.machine()}, Python "
         f"{platform.python_version()}; JSBSim airframe `sim_bridge/data/aircraft/gcs_quad`, gains "
         "`sim_bridge/data/control.toml`. All runs are lockstep (`Multicopter.step(0.02)` in a loop) from a "
         f"hover at {-HOVER_DOWN_M} m in `open_field`, physics at {hz:g} Hz. Speed is process CPU time.", "",

@@ -1,6 +1,6 @@
 """Fuzz a running gcs-sim on the wire (UDP and TCP), then check that it still serves.
 
-Run as ``python -m tools.fuzz_sim`` (default: 120 s per personality, writes docs/bench/fuzz_sim.md);
+Run as ``python -m tools.sim.fuzz_sim`` (default: 120 s per personality, writes docs/bench/fuzz_sim.md);
 ``tests/test_sim_fuzz.py`` runs the same fuzzer for a few seconds against each personality.
 
 What is sent, as fast as the sim takes it: random bytes; valid frames with bytes overwritten, cut short
@@ -33,7 +33,7 @@ from gcs_voice.session.sim_process import BundledSim
 __all__ = ["hostile_message", "fuzz_chunk", "fuzz", "FuzzCounts", "Health", "Station", "check_serving", "rss_kb",
            "learn_sim_address"]
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 #: Commands that change the flight (mode, arm, take-off, land, RTL, home, speed, reboot, mission start).
 FLIGHT_COMMANDS = frozenset({11, 20, 21, 22, 176, 178, 179, 246, 300, 400})
 #: Commands the sim answers without changing the flight: fuzzed with hostile parameters.
@@ -417,7 +417,7 @@ def run(autopilot: str, seconds: float, seed: int, rounds: int) -> dict:
 
 def _report(results: list[dict], command: str) -> str:
     lines = ["# gcs-sim under fuzz", "",
-             f"Produced by `{command}` (tools/fuzz_sim.py) on {sys.platform}, Python {sys.version.split()[0]}. "
+             f"Produced by `{command}` (tools/sim/fuzz_sim.py) on {sys.platform}, Python {sys.version.split()[0]}. "
              "Random bytes, mutated frames and hostile well-formed messages on UDP and TCP (TCP clients also "
              "reset mid-frame), at up to 2000 writes/s, against `gcs-sim --room open_field` in real time; then a "
              "fresh TCP ground station checks HEARTBEAT (1 Hz in simulated time), UDP still heard, and a "
@@ -447,7 +447,7 @@ def _report(results: list[dict], command: str) -> str:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m tools.fuzz_sim", description=__doc__.split("\n\n")[0])
+    parser = argparse.ArgumentParser(prog="python -m tools.sim.fuzz_sim", description=__doc__.split("\n\n")[0])
     parser.add_argument("--seconds", type=float, default=120.0, help="fuzz time per personality (default 120)")
     parser.add_argument("--autopilot", choices=["ardupilot", "px4", "both"], default="both")
     parser.add_argument("--seed", type=int, default=20261202)
@@ -457,7 +457,7 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--seconds: 1 to 86400")
     autopilots = ["ardupilot", "px4"] if args.autopilot == "both" else [args.autopilot]
     results = [run(ap, args.seconds, args.seed, rounds=10) for ap in autopilots]
-    command = "python -m tools.fuzz_sim" + ("" if args.seconds == 120 else f" --seconds {args.seconds:g}")
+    command = "python -m tools.sim.fuzz_sim" + ("" if args.seconds == 120 else f" --seconds {args.seconds:g}")
     text = _report(results, command)
     print(text)
     if not args.no_write:

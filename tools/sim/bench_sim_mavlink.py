@@ -1,6 +1,6 @@
 """Benchmark gcs-sim's MAVLink side: lockstep speed with telemetry, stream rates, real-time pacing, ACK latency.
 
-    nice -n 10 python -m tools.bench_sim_mavlink [--out docs/bench/sim_mavlink.md]
+    nice -n 10 python -m tools.sim.bench_sim_mavlink [--out docs/bench/sim_mavlink.md]
 
 1. Lockstep: a scripted 60 s flight (boot, GUIDED/OFFBOARD, takeoff, 10 Hz velocity setpoints, turn, land)
    against the in-process sim, with a pymavlink ground station on loopback UDP decoding everything the
@@ -28,7 +28,7 @@ from pymavlink.dialects.v20 import ardupilotmega as M
 from gcs_voice.session.sim_process import BundledSim
 from tools.flight.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
 
-REPO = Path(__file__).resolve().parent.parent
+REPO = Path(__file__).resolve().parents[2]
 FLIGHT_S = 60.0
 
 
@@ -170,7 +170,7 @@ def main() -> None:
     parser.add_argument("--out", type=Path, default=REPO / "docs" / "bench" / "sim_mavlink.md")
     args = parser.parse_args()
     rows = ["# gcs-sim MAVLink side: benchmark", "",
-            f"Produced by `nice -n 10 python -m tools.bench_sim_mavlink` (tools/bench_sim_mavlink.py) on "
+            f"Produced by `nice -n 10 python -m tools.sim.bench_sim_mavlink` (tools/sim/bench_sim_mavlink.py) on "
             f"{platform.machine()}, Python {platform.python_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}."
             " The machine is shared (2 cores, other jobs running): CPU times vary by +-30 % between runs.", ""]
     rates = bench_lockstep(rows)
