@@ -27,10 +27,10 @@ import numpy as np
 from gcs_voice.asr.base import Recognition
 from gcs_voice.understanding import MATCHERS
 
-from tools.speech import bench_accuracy_engines as bench_engines
+from tools.speech import accuracy_data
 from tools.speech import bench_accuracy_report as bench_report
 from tools.speech import make_corpus
-from tools.speech.bench_accuracy_data import REPO, SHARED, Item, corpus_items, file_digest, fresh_cache, real_items, save_cache
+from tools.speech.accuracy_data import REPO, SHARED, Item, corpus_items, file_digest, fresh_cache, real_items, save_cache
 
 CHUNK_S = 0.1
 
@@ -69,18 +69,18 @@ def recognise(engines: Iterable[str], items: list[Item], limit_s: float | None, 
     for engine in engines:
         cache = fresh_cache(engine, items)
         todo = [it for it in items[::every] if it.key not in cache]
-        todo = [it for it in todo if bench_engines.supports(engine, it.lang)]
+        todo = [it for it in todo if accuracy_data.supports(engine, it.lang)]
         # A fixed pseudo-random order: a run stopped early (--limit-s) still samples every cell evenly.
         todo.sort(key=lambda it: (it.split != "real", zlib.crc32(it.key.encode())))
         print(f"{engine}: {len(cache)} cached, {len(todo)} to recognise", flush=True)
         if not todo:
             continue
         recognizers: dict[str, object] = {}
-        config = bench_engines.config(engine)
+        config = accuracy_data.config(engine)
         t_start, last_save = time.monotonic(), time.monotonic()
         for n, it in enumerate(todo, 1):
             if it.lang not in recognizers:
-                recognizers[it.lang] = bench_engines.load(engine, it.lang)
+                recognizers[it.lang] = accuracy_data.load(engine, it.lang)
             cache[it.key] = recognise_one(recognizers[it.lang], it)
             if time.monotonic() - last_save > 20 or n == len(todo):
                 save_cache(engine, cache, config)

@@ -19,7 +19,7 @@ from pathlib import Path
 
 REPO = Path(__file__).resolve().parents[2]
 
-from tools.speech import bench_accuracy_data as bench
+from tools.speech import accuracy_data as bench
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER
 

@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.speech.bench_accuracy_data import (
+from tools.speech.accuracy_data import (
     BEGIN, CACHE_DIR, DOC, END, IMG, MIXED_NOISES, PAPER_NOISES, Item, Score, decide_all, fresh_cache, is_near, recognition,
     score, voice_kind,
 )
