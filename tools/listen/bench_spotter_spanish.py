@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.speech import bench_spanish as bs
-from tools.speech.bench_real import pct
+from tools.speech.real_cache import pct
 
 REPO = Path(__file__).resolve().parents[2]
 SETTINGS = REPO / "gcs_voice" / "asr" / "stop_spotter.toml"

@@ -23,7 +23,7 @@ from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
 from gcs_voice.understanding.decision import Decision
 from gcs_voice.domain.amounts import DISTANCE_MOTIONS, HEIGHT_MOTIONS, TURNS, number_words, split_amount, vocabulary
 from gcs_voice.domain.text import normalize_text
-from tools.speech.bench_real import pct, recognise_one
+from tools.speech.real_cache import pct, recognise_one
 from tools.speech.make_corpus import mix_at_snr, read_wav, synthesise
 from tools.speech.real_speech import SHARED
 

@@ -26,7 +26,7 @@ import numpy as np
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
 from tools.speech.bench_amounts import outcome
-from tools.speech.bench_real import pct, recognise_one
+from tools.speech.real_cache import pct, recognise_one
 from tools.speech.make_corpus import mix_at_snr, read_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
@@ -144,7 +144,7 @@ def sweep_after(args: argparse.Namespace) -> int:
     import tempfile
 
     from gcs_voice.asr.registry import load_recognizer
-    from tools.speech.bench_real import _with_thresholds
+    from tools.speech.real_tune import _with_thresholds
 
     dictionary = load_language("en")
     recognizer = load_recognizer("whisper", [dictionary], model=args.model, mode="score")

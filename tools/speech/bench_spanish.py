@@ -41,10 +41,11 @@ from gcs_voice.asr.base import Recognition
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
 from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, load_thresholds
-from tools.speech import bench_real
-from tools.speech.bench_real import Counts, _recognition, _with_thresholds, pct, recognise_one
+from tools.speech import real_cache, real_tune
+from tools.speech.real_cache import Counts, _recognition, pct, recognise_one
+from tools.speech.real_tune import _with_thresholds
 from tools.speech.make_corpus import SENTENCES_PATH, synthesise
-from tools.speech.real_speech import SHARED, mix, read_wav
+from tools.speech.real_speech import SHARED, load_recordings, mix, read_wav
 
 REPO = Path(__file__).resolve().parents[2]
 DOC = REPO / "docs" / "bench" / "spanish.md"
@@ -111,7 +112,7 @@ def audio(item: Item) -> np.ndarray:
 
 def _config(model: str) -> str:
     """The model and the dictionary it scores: a cached recognition of another one is made again."""
-    return hashlib.sha1((bench_real.model_identity(model) + load_language("es").path.read_text(encoding="utf-8"))
+    return hashlib.sha1((real_cache.model_identity(model) + load_language("es").path.read_text(encoding="utf-8"))
                         .encode()).hexdigest()[:12]
 
 
@@ -166,7 +167,7 @@ def count(selected: list[Item], cache: dict[str, dict], matcher, missed: list | 
 
 
 def _objective(c: Counts) -> int:
-    return c.right - bench_real.WRONG_COST * c.wrong - bench_real.ACTED_COST * c.sentences_acted
+    return c.right - real_tune.WRONG_COST * c.wrong - real_tune.ACTED_COST * c.sentences_acted
 
 
 def _fits(c: Counts) -> bool:
@@ -186,8 +187,8 @@ def with_values(values: dict[str, float], directory: Path, name: str) -> Path:
 def tune(write: bool) -> int:
     cache = load_cache()
     dev = [i for i in items() if i.split == "dev"]
-    english = bench_real.load_cache("whisper-score")
-    en_dev = bench_real.load_recordings(split="dev")
+    english = real_cache.load_cache("whisper-score")
+    en_dev = load_recordings(split="dev")
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for n, combo in enumerate(itertools.product(*GRID.values())):
@@ -213,15 +214,15 @@ def tune(write: bool) -> int:
                           reverse=True)
         print(f"dev voices, clean and {SNR_DB:g} dB; limits: no wrong action, other speech acted on <= "
               f"{100 * ACTED_LIMIT * DEV_SAFETY:g} %, also one grid step looser in any key; objective = right - "
-              f"{bench_real.WRONG_COST} x wrong - {bench_real.ACTED_COST} x other speech acted on")
+              f"{real_tune.WRONG_COST} x wrong - {real_tune.ACTED_COST} x other speech acted on")
         chosen = None
         for values, _, score, c in feasible:
             # the margin and the class gap on real English speakers: the decision's shape on real speech
             en_values = {k: v for k, v in values.items() if k != "word_max_distance"}
             path = _with_thresholds("evidence.whisper-score", en_values, Path(tmp), "en")
             matcher = get_matcher(DEFAULT_MATCHER, thresholds_path=path)
-            en_ok = all(bench_real.within_targets(bench_real.count(en_dev, cond, english, matcher), "clean",
-                                                  bench_real.DEV_SAFETY) for cond in ("clean", "kitchen20"))
+            en_ok = all(real_tune.within_targets(real_cache.count(en_dev, cond, english, matcher), "clean",
+                                                 real_tune.DEV_SAFETY) for cond in ("clean", "kitchen20"))
             print(f"  {values}  objective {score}: {c.right}/{c.commands} right, {c.wrong} wrong, "
                   f"{c.sentences_acted}/{c.sentences} other speech acted on; real English dev within its limits: "
                   f"{'yes' if en_ok else 'no'}")

@@ -35,7 +35,7 @@ from gcs_voice.asr.sphinx_engine import SphinxRecognizer
 from gcs_voice.audio.sources import read_wav
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import MATCHERS, get_matcher
-from tools.speech.bench_real import Counts
+from tools.speech.real_cache import Counts
 from tools.speech.real_speech import Recording, load_recordings
 
 CACHE = REPO / "out" / "bench" / "sphinx_real"
@@ -134,7 +134,7 @@ def beyond_rows(rows: list[Recording], recs: dict[Path, Recognition], matcher: s
     wrong - 2 x acted on"; ties: the loosest) and the table lines."""
     import tempfile
 
-    from tools.speech.bench_real import _with_thresholds
+    from tools.speech.real_tune import _with_thresholds
 
     lines = ["| max_speech_beyond_s | split | commands right | wrong action | non-commands acted on | words | sentences |",
              "|---|---|---|---|---|---|---|"]
