@@ -424,7 +424,7 @@ def test_a_clatter_of_dishes_does_not_fly(whisper_score):
     confidence for anything, while the phrase "ahead" scored above that and flew go_forward. What Whisper
     could not write down is no action."""
     from conftest import shared_path
-    from tools.listen.bench_stream import read_wav
+    from tools.listen.streams import read_wav
 
     noise = read_wav(shared_path("noise", "doing_the_dishes.wav"))
     pcm = (noise[196153:196153 + 6656] * 0.3365 * 32767).astype("<i2").tobytes()

@@ -26,7 +26,7 @@ from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.feedback import load_sound_settings
 from tools.listen.bench_deaf_edge import SpotterStreams
 from tools.listen.bench_echo import room_response, voiced_dbfs
-from tools.listen.bench_stream import voiced_level
+from tools.listen.streams import voiced_level
 
 DELAY_S = 0.06
 PILOT_DBFS = -26.0

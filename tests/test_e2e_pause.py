@@ -115,7 +115,7 @@ def test_a_recording_heard_as_the_microphone_pauses_at_the_end_of_the_speech(tmp
     import numpy as np
 
     from gcs_voice.audio.sources import read_wav
-    from tools.listen.bench_stream import write_wav
+    from tools.listen.streams import write_wav
 
     silence = lambda s: np.zeros(int(s * 16_000), np.float32)  # noqa: E731
     clip = lambda path: np.frombuffer(read_wav(path), "<i2").astype(np.float32) / 32768  # noqa: E731

@@ -41,7 +41,7 @@ from gcs_voice.audio.speaker import EchoGate
 from gcs_voice.audio.vad import segment_utterances
 from gcs_voice.session.feedback import load_sound_settings
 from tools.listen.bench_echo import room_response, voiced_dbfs
-from tools.listen.bench_stream import voiced_level
+from tools.listen.streams import voiced_level
 from tools.speech.real_speech import SHARED, load_recordings, read_wav
 
 PILOT_DBFS = -26.0

@@ -24,7 +24,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from tools.listen.bench_stream import voiced_level
+from tools.listen.streams import voiced_level
 from tools.speech.real_speech import SHARED, load_recordings
 
 if TYPE_CHECKING:

@@ -29,7 +29,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.listen.bench_stream import SPEECH_DBFS, build_stream, choose, voiced_level, write_truth, write_wav
+from tools.listen.streams import SPEECH_DBFS, build_stream, choose, voiced_level, write_truth, write_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
 ROOT = Path(__file__).resolve().parents[2]

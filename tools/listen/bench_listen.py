@@ -39,7 +39,8 @@ from pathlib import Path
 import numpy as np
 
 from tools.flight.bench_latency import percentile
-from tools.listen.bench_stream import KINDS, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
+from tools.listen.stream_score import KINDS
+from tools.listen.streams import NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -41,7 +41,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.flight.bench_latency import percentile
-from tools.listen.bench_stream import at_speech_level, read_wav, under_noise, voiced_level, write_wav
+from tools.listen.streams import at_speech_level, read_wav, under_noise, voiced_level, write_wav
 from tools.cpu_steal import busy_loops
 from tools.speech.real_speech import CONDITIONS, SHARED, Recording, load_recordings
 

@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.listen.bench_stream import NOISE_FILES, read_wav, voiced_level
+from tools.listen.streams import NOISE_FILES, read_wav, voiced_level
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 THRESHOLDS = (1e-15, 1e-20, 1e-25, 1e-30)
@@ -67,7 +67,7 @@ def mic_path(clips: list[Recording], noise: np.ndarray | None, listen_pre_roll_s
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.sources import MICROPHONE_BLOCK_S, pcm_to_chunks
     from gcs_voice.audio.vad import load_vad_settings, segment_utterances
-    from tools.listen.bench_stream import build_stream
+    from tools.listen.streams import build_stream
 
     x, placed = build_stream(clips, noise, 12.0 if noise is not None else None, seed, pause_s=(1.5, 3.0))
     pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()

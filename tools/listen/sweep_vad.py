@@ -20,7 +20,7 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.listen.bench_stream import NOISE_FILES, build_stream, choose, read_wav
+from tools.listen.streams import NOISE_FILES, build_stream, choose, read_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
 PAIRS = ((0.5, 0.35), (0.4, 0.25), (0.3, 0.2), (0.2, 0.12))

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-from tools.listen.bench_stream import NOISE_FILES, choose, lay_clips, noise_track, overlaps, read_wav
+from tools.listen.stream_score import overlaps
+from tools.listen.streams import NOISE_FILES, choose, lay_clips, noise_track, read_wav
 from tools.speech.real_speech import SHARED, load_recordings
 
 #: (name, pauses s, level spread dB, utterances)
