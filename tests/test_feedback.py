@@ -173,7 +173,7 @@ def _listen(recording: bytes, bridge_pcm: bytes, play_at_s: float, gate: EchoGat
 
 
 def _voiced_dbfs(pcm: bytes) -> float:
-    """Level of the voiced frames (tools.listen.bench_stream.voiced_level): speech, not its pauses."""
+    """Level of the voiced frames (tools.listen.streams.voiced_level): speech, not its pauses."""
     from tools.listen.streams import voiced_level
 
     return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0] + 1e-9))

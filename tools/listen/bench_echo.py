@@ -35,7 +35,7 @@ RATE = 16_000
 
 
 def voiced_dbfs(x: np.ndarray) -> float:
-    """Level of the voiced frames (tools.listen.bench_stream.voiced_level), in dBFS, of int16-scaled samples."""
+    """Level of the voiced frames (tools.listen.streams.voiced_level), in dBFS, of int16-scaled samples."""
     return float(20 * np.log10(voiced_level(x / 32768.0)[0] + 1e-12))
 
 

@@ -2,7 +2,7 @@
 """A long ``--listen-wav`` session with the bridge's own speech mixed back into the microphone: what it causes.
 
 Builds a stream of real speech (the held-out test speakers of ../shared/speech: commands, other words and
-sentences at random pauses, ``tools.listen.bench_stream.build_stream``, each at the same voiced level), then flies
+sentences at random pauses, ``tools.listen.streams.build_stream``, each at the same voiced level), then flies
 it once, as a user would (``python -m gcs_voice --listen-wav STREAM --takeoff 1.5 --feedback speech
 --feedback-echo=DB:MS`` against the bundled simulator in real time): every cue the bridge plays is added
 back into what it hears, ``--echo-db`` relative to the pilot's voiced level and ``--delay-ms`` late.
@@ -62,7 +62,7 @@ class Clip:
 
 
 def read_clips(path: Path) -> list[Clip]:
-    """The clips of a stream's truth file (``tools.listen.bench_stream.write_truth``)."""
+    """The clips of a stream's truth file (``tools.listen.streams.write_truth``)."""
     with open(path, encoding="utf-8") as f:
         return [Clip(float(r["start_s"]), float(r["end_s"]), float(r["voiced_start_s"]), float(r["voiced_end_s"]),
                      None if r["truth"] == "none" else r["truth"]) for r in csv.DictReader(f, delimiter="\t")]

@@ -10,11 +10,11 @@ through space) with a real recorded "stop" from the held-out test part of ``../s
 (``tools.speech.real_speech.load_recordings(split="test")``, the one split of every real-speech tool; this file
 has none of its own), 2 s of silence after each, every stop at the same speech level.
 ``--conditions clean,kitchen12`` flies one session per condition: under a noisy condition that real noise
-runs under the whole recording at that SNR below the speech (``tools.listen.bench_stream.under_noise``: the
+runs under the whole recording at that SNR below the speech (``tools.listen.streams.under_noise``: the
 stream benchmark's room), so the motions are said in the noise too.
 
 For each stop: the end of speech is the end of the stop recording's voiced frames (25 dB below its peak,
-``tools.listen.bench_stream.voiced_level``) on the wall clock of the playback (the session logs when its first
+``tools.listen.streams.voiced_level``) on the wall clock of the playback (the session logs when its first
 sample played); the stop is the first zero-velocity SET_POSITION_TARGET_LOCAL_NED on the wire after the
 recording began that stays so until the next motion is said (the session's tlog): a pause that was resumed
 is no stop. Each is put down to what sent it: the stop spotter, the pause while the utterance is decided

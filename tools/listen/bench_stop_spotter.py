@@ -59,7 +59,7 @@ def run(clips: list[Recording], pcms: list[bytes], threshold: float, words: list
 
 def mic_path(clips: list[Recording], noise: np.ndarray | None, listen_pre_roll_s: float, seed: int) -> dict:
     """The spotter as a live session runs it: the clips in one stream (1.5-3 s pauses, the noise under all of
-    it at 12 dB, ``tools.listen.bench_stream.build_stream``), cut by the Silero segmenter, the spotter fed by its
+    it at 12 dB, ``tools.listen.streams.build_stream``), cut by the Silero segmenter, the spotter fed by its
     listener from ``listen_pre_roll_s`` before each detected start. A clip counts as fired when a spotter
     session that overlaps it fired."""
     from dataclasses import replace
@@ -219,7 +219,7 @@ def mic_main(args: argparse.Namespace, argv: list[str] | None) -> int:
         "",
         "The spotter as a live session runs it: every \"stop\" of a split, 20 of its sentences and 20 of its other "
         "commands, shuffled, in one stream at 1.5-3 s pauses (each at -26 dBFS over its voiced frames; kitchen12: "
-        "the real kitchen recording under the whole stream 12 dB below, `tools.listen.bench_stream.build_stream`), cut "
+        "the real kitchen recording under the whole stream 12 dB below, `tools.listen.streams.build_stream`), cut "
         "by the Silero segmenter, the spotter fed by the segmenter's listener from `listen_pre_roll_s` before "
         "each detected start (the rest of gcs_voice/audio/vad.toml as shipped). A recording counts as fired when "
         "a spotter session overlapping it fired. Dev chooses, test reports.",
