@@ -20,7 +20,7 @@ import pytest
 
 from gcs_voice.session.flight_log import Flight, read_flight
 from gcs_voice.session.session_log import read_session_log
-from tools import make_demo_audio
+from tools.speech import make_demo_audio
 
 REPO = Path(__file__).resolve().parent.parent
 DEMO_AUDIO = REPO / "gcs_voice" / "session" / "demo_audio"

@@ -127,13 +127,13 @@ def test_a_spanish_distance_down_after_an_elided_a_is_unsure() -> None:
 
 @pytest.mark.slow
 def test_a_digit_whisper_did_not_write_is_not_flown_open_ended(whisper_score, real_speech_dir):
-    """A real "right" and a real "three" after it (tools.bench_amounts_real's splice, held-out speakers): Whisper
+    """A real "right" and a real "three" after it (tools.speech.bench_amounts_real's splice, held-out speakers): Whisper
     writes "Right." for some. Flown, that motion runs until "stop" where 3 m was asked; the speech after the
     words it wrote (``speech_after_s``) says there was more, and nothing is done. The same "right" alone flies."""
     import numpy as np
 
-    from tools.bench_amounts_real import spliced, voiced
-    from tools.make_corpus import read_wav
+    from tools.speech.bench_amounts_real import spliced, voiced
+    from tools.speech.make_corpus import read_wav
 
     command = real_speech_dir / "en" / "go_right" / "sc_right_1ed557b9_nohash_0.wav"
     digit = real_speech_dir / "en" / "_none" / "sc_three_c9b653a0_nohash_2.wav"

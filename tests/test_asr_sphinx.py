@@ -94,14 +94,14 @@ def test_filling_digital_silence_hears_the_150_wpm_stop(tmp_path):
 
 @pytest.mark.slow
 def test_real_recordings(grammar, real_speech_dir):
-    """The held-out speakers of ../shared/speech (test split of tools.real_speech, never tuned on) with
-    the shipped settings and the default matcher: the rates measured by tools/bench_sphinx_real.py
+    """The held-out speakers of ../shared/speech (test split of tools.speech.real_speech, never tuned on) with
+    the shipped settings and the default matcher: the rates measured by tools/speech/bench_sphinx_real.py
     (docs/bench/sphinx_real.md). PocketSphinx does NOT meet the 2 % bound on non-commands (no setting
     did, on dev): this pins the measured rates so a change that acts on more other speech or gets
     fewer commands fails, and the bound can only tighten."""
     from gcs_voice.audio.sources import read_wav
     from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
-    from tools.bench_sphinx_real import english
+    from tools.speech.bench_sphinx_real import english
 
     rows = [r for r in english(real_speech_dir) if r.split == "test"]
     matcher = get_matcher(DEFAULT_MATCHER)

@@ -4,7 +4,7 @@ vocabulary, model resolution the way the vosk package does it (without its netwo
 
 espeak-ng's Korean voice is rough: of the dictionary words, the model hears 위로, 위, 아래, 멈춰, 정지,
 오른쪽 and 왼쪽 right (asserted below), but 뒤로 comes out as 위로 and 앞으로 as 아래 (not asserted:
-synthetic-voice limits, not engine bugs; checked by hand with tools/bench_asr_speed.py).
+synthetic-voice limits, not engine bugs; checked by hand with tools/speech/bench_asr_speed.py).
 """
 
 from __future__ import annotations

@@ -424,7 +424,7 @@ def test_a_clatter_of_dishes_does_not_fly(whisper_score):
     confidence for anything, while the phrase "ahead" scored above that and flew go_forward. What Whisper
     could not write down is no action."""
     from conftest import shared_path
-    from tools.bench_stream import read_wav
+    from tools.listen.streams import read_wav
 
     noise = read_wav(shared_path("noise", "doing_the_dishes.wav"))
     pcm = (noise[196153:196153 + 6656] * 0.3365 * 32767).astype("<i2").tobytes()
@@ -507,7 +507,7 @@ def test_a_free_pass_that_stops_early_judges_as_one_that_ran_on(whisper_score, r
                                                                  monkeypatch, clip, passes):
     """Stopped where nothing more could change the judgement, or read on from what Whisper wrote, the free pass
     gives the same scores as one pass with room for an amount: the loops of short commands took a 180 ms pass
-    for a 50 ms one, and were the tail of the decision time (tools.bench_real timing)."""
+    for a 50 ms one, and were the tail of the decision time (tools.speech.bench_real timing)."""
     from gcs_voice.asr import whisper_score as ws
     from gcs_voice.audio.sources import read_wav
 

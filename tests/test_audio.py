@@ -186,13 +186,13 @@ def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_d
     (It does miss some quiet one-word recordings: see docs/bench/stream.md for the counts.)
     """
     from conftest import shared_path
-    from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.listen import streams
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(5).permutation(len(commands))[:6]]
-    noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
-    x, placed = bench_stream.build_stream(clips, noise, 12.0, seed=5, pause_s=(1.0, 2.5))
+    noise = streams.read_wav(shared_path("noise", "doing_the_dishes.wav"))
+    x, placed = streams.build_stream(clips, noise, 12.0, seed=5, pause_s=(1.0, 2.5))
     pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
     utterances = list(segment_utterances(pcm_to_chunks(pcm), load_vad_settings(method="silero")))
     spans = [(u.start_s, u.end_s) for u in utterances]
@@ -254,15 +254,15 @@ def test_a_tentative_utterance_is_the_one_yielded_when_the_silence_runs_out(tmp_
 def _kitchen_stream(real_speech_dir, lead_s: float) -> tuple[bytes, list, float]:
     """20 held-out real commands at 12 dB over the real kitchen noise, after ``lead_s`` of that noise alone."""
     from conftest import shared_path
-    from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.listen import streams
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(7).permutation(len(commands))[:20]]
-    noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
-    speech, placed, rng = bench_stream.lay_clips(clips, 5, (1.5, 3.0))
+    noise = streams.read_wav(shared_path("noise", "doing_the_dishes.wav"))
+    speech, placed, rng = streams.lay_clips(clips, 5, (1.5, 3.0))
     speech = np.concatenate([np.zeros(int(lead_s * RATE)), speech])
-    x = np.clip(speech + bench_stream.noise_track(noise, speech.size, 12.0, rng), -1, 1)
+    x = np.clip(speech + streams.noise_track(noise, speech.size, 12.0, rng), -1, 1)
     return (x * 32767).astype("<i2").tobytes(), placed, lead_s
 
 
@@ -294,11 +294,11 @@ def test_the_networks_memory_is_bounded(real_speech_dir):
     probabilities from then on, to the bit: the state cannot drift, whatever the room did before."""
     from conftest import shared_path
     from gcs_voice.audio.vad import SILERO_WINDOW, SileroVad
-    from tools import bench_stream
+    from tools.listen.streams import read_wav
 
     memory_s = load_vad_settings(method="silero").silero.memory_s
-    kitchen = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav")).astype(np.float32)
-    tap = bench_stream.read_wav(shared_path("noise", "running_tap.wav")).astype(np.float32)
+    kitchen = read_wav(shared_path("noise", "doing_the_dishes.wav")).astype(np.float32)
+    tap = read_wav(shared_path("noise", "running_tap.wav")).astype(np.float32)
     before, after = 30 * RATE, int((2 * memory_s + 10) * RATE)
     tail = kitchen[before:before + after]
     streams = [np.concatenate([kitchen[:before], tail]), np.concatenate([tap[:before] * 3, tail])]
@@ -313,13 +313,14 @@ def test_the_networks_memory_is_bounded(real_speech_dir):
 
 
 def test_the_stream_benchmark_counts_each_outcome_as_said() -> None:
-    """tools.bench_stream's counts: a command right, one taken for another motion (wrong), one taken for a stop (wrong,
+    """tools.listen.bench_stream's counts: a command right, one taken for another motion (wrong), one taken for a stop (wrong,
     and counted as a stop: the vehicle held), one never segmented, a sentence acted on, an action on noise alone;
     and its outcome file names each of them."""
     from pathlib import Path
 
-    from tools.bench_stream import Placed, outcomes, score
-    from tools.real_speech import Recording
+    from tools.listen.stream_score import outcomes, score
+    from tools.listen.streams import Placed
+    from tools.speech.real_speech import Recording
 
     def rec(action, kind="command"):
         return Recording(Path(f"/x/{action}.wav"), action, str(action), "s", "test", kind, "en")
@@ -351,15 +352,15 @@ def test_the_segmenter_says_how_far_each_voice_stood_above_the_room(real_speech_
     heard only as digital silence (push-to-talk up, the bridge's own sound muted out) is no room: no SNR."""
     from conftest import shared_path
     from gcs_voice.audio.vad import RoomLevel
-    from tools import bench_stream
-    from tools.real_speech import load_recordings
+    from tools.listen import streams
+    from tools.speech.real_speech import load_recordings
 
     commands = [r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command"]
     clips = [commands[i] for i in np.random.default_rng(11).permutation(len(commands))[:10]]
-    noise = bench_stream.read_wav(shared_path("noise", "doing_the_dishes.wav"))
+    noise = streams.read_wav(shared_path("noise", "doing_the_dishes.wav"))
     medians = {}
     for snr in (6.0, 18.0):
-        x, placed = bench_stream.build_stream(clips, noise, snr, seed=11, pause_s=(1.5, 3.0))
+        x, placed = streams.build_stream(clips, noise, snr, seed=11, pause_s=(1.5, 3.0))
         pcm = (np.clip(x, -1, 32767 / 32768) * 32768).astype("<i2").tobytes()
         heard = [u.snr_db for u in segment_utterances(pcm_to_chunks(pcm), load_vad_settings(method="silero"))]
         assert len(heard) >= 8 and all(h is not None for h in heard), heard
@@ -377,7 +378,7 @@ def test_another_noise_seed_draws_another_segment_at_the_same_snr(real_speech_di
     """``bench_real spread`` asks how far the figures move with the noise segment drawn: the shipped seed must
     give exactly the audio the shipped figures were made from, another seed other noise under the same speech,
     at the same SNR (over the speech's voiced frames)."""
-    from tools.real_speech import NOISE_SEED, active_power, condition_audio, load_recordings, read_wav
+    from tools.speech.real_speech import NOISE_SEED, active_power, condition_audio, load_recordings, read_wav
 
     rec = next(r for r in load_recordings(real_speech_dir, split="test") if r.kind == "command")
     speech = read_wav(rec.path).astype(np.float64)

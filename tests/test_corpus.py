@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 
-from tools import make_corpus as mc
+from tools.speech import make_corpus as mc
 
 NOISES = mc.parse_noises("raw,u0.05,u0.15,babble10,hum5")
 

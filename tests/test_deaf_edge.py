@@ -2,7 +2,7 @@
 
 While the bridge speaks the segmenter is deaf (it is fed silence) and the stop spotter hears the microphone less
 the bridge's echo. A pilot who speaks as the deaf time ends had the word cut in two: its start went to the stream
-over the bridge's voice, its end to the segmenter. Live (session 27, tools.bench_feedback_echo), a real "stop"
+over the bridge's voice, its end to the segmenter. Live (session 27, tools.listen.bench_feedback_echo), a real "stop"
 said over the end of "fence reached" was cut so and never heard as a stop by either half. Real parts: the bridge's
 cues as espeak-ng renders them, real held-out recordings of ../shared/speech, the microphone path in real time with
 the echo room of ``--listen-wav`` sessions, PocketSphinx's stop spotter, Whisper's decision.
@@ -24,9 +24,9 @@ from gcs_voice.audio.sources import paced_chunks, read_wav
 from gcs_voice.audio.speaker import EchoGate, EchoRoom
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.feedback import load_sound_settings
-from tools.bench_deaf_edge import SpotterStreams
-from tools.bench_echo import room_response, voiced_dbfs
-from tools.bench_stream import voiced_level
+from tools.listen.bench_deaf_edge import SpotterStreams
+from tools.listen.bench_echo import room_response, voiced_dbfs
+from tools.listen.streams import voiced_level
 
 DELAY_S = 0.06
 PILOT_DBFS = -26.0
@@ -105,7 +105,7 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
     fly "left")."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     settings = load_sound_settings()
     spotter = load_stop_spotter(["en"])
@@ -147,7 +147,7 @@ def test_a_word_said_across_the_end_of_the_deaf_time_is_heard_whole(real_speech_
         assert whole, (f"no stream the spotter heard has the stop's voice ({voiced_start_s:.2f}-{voiced_end_s:.2f} s, "
                        f"the deaf time ended {edge_s:.2f} s) whole")
         fired += any(spotter.spot(pcm, over).fired for over, pcm in whole)
-    # whether the spotter fires on a word is its own business (tools.bench_deaf_edge measures it): here, that what
+    # whether the spotter fires on a word is its own business (tools.listen.bench_deaf_edge measures it): here, that what
     # it is given is a word it can hear
     assert fired >= 1, "the spotter heard neither stop, each whole in a stream of its own"
     # the segmenter's utterances, in the recording's time (the path's clock starts once the first block arrived)
@@ -171,7 +171,7 @@ def test_what_began_over_the_bridge_voice_is_not_acted_on_unless_it_is_a_stop(wh
     from gcs_voice.session.events import EventBus
     from gcs_voice.session.listen import VoicePipeline
     from gcs_voice.session.run import load_voice
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     recognizer, matcher, dictionaries, lang = load_voice("en", "whisper", str(whisper_model_dir), None)
     pipeline = VoicePipeline(recognizer, matcher, dictionaries, lang, EventBus(), realtime=False)

@@ -20,7 +20,7 @@ ECHO_DELAY_MS = 60
 
 
 def _voiced_dbfs(x: np.ndarray) -> float:
-    from tools.bench_stream import voiced_level
+    from tools.listen.streams import voiced_level
 
     return float(20 * np.log10(voiced_level(x)[0] + 1e-9))
 
@@ -36,7 +36,7 @@ def test_the_bridge_own_speech_mixed_into_the_microphone_changes_no_decision(tmp
     from gcs_voice.audio.sounds import Speech, tone
     from gcs_voice.audio.sources import read_wav
     from gcs_voice.session.feedback import load_sound_settings
-    from tools.bench_stream import write_wav
+    from tools.listen.streams import write_wav
 
     silence = lambda s: np.zeros(int(s * 16_000), np.float32)  # noqa: E731
     clip = lambda path: np.frombuffer(read_wav(path), "<i2").astype(np.float32) / 32768  # noqa: E731

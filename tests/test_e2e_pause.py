@@ -37,7 +37,7 @@ def _rejected_sentence(real_speech_dir: Path) -> Path:
     from gcs_voice.audio.sources import read_wav
     from gcs_voice.domain.text import normalize_text
     from gcs_voice.session.run import load_voice
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     recognizer, matcher, dictionaries, lang = load_voice("en", "sphinx", None, None)
     stop_phrases = {key for d in dictionaries for key, p in d.by_key.items() if p.action == "stop"}
@@ -115,7 +115,7 @@ def test_a_recording_heard_as_the_microphone_pauses_at_the_end_of_the_speech(tmp
     import numpy as np
 
     from gcs_voice.audio.sources import read_wav
-    from tools.bench_stream import write_wav
+    from tools.listen.streams import write_wav
 
     silence = lambda s: np.zeros(int(s * 16_000), np.float32)  # noqa: E731
     clip = lambda path: np.frombuffer(read_wav(path), "<i2").astype(np.float32) / 32768  # noqa: E731

@@ -22,7 +22,7 @@ def test_the_spotted_stop_is_on_the_wire_before_the_main_decision(tmp_path: Path
     require_parts("sim_bridge.cli", "faster_whisper")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.sources import read_wav
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     stop = next(r.path for r in load_recordings(real_speech_dir, split="test")

@@ -2,7 +2,7 @@
 
 Real parts: the bridge's cue as espeak-ng renders it, real held-out "stop" recordings of ../shared/speech,
 PocketSphinx's stop spotter, the microphone path in real time (``microphone_utterances``) with the echo room
-of ``--listen-wav`` sessions. The room is the textbook statistical one of ``tools.bench_echo``.
+of ``--listen-wav`` sessions. The room is the textbook statistical one of ``tools.listen.bench_echo``.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from gcs_voice.audio.sources import paced_chunks, read_wav
 from gcs_voice.audio.speaker import EchoGate, EchoRoom
 from gcs_voice.errors import GcsVoiceError
 from gcs_voice.session.feedback import load_sound_settings
-from tools.bench_echo import room_response, voiced_dbfs
+from tools.listen.bench_echo import room_response, voiced_dbfs
 
 DELAY_S = 0.06
 
@@ -85,7 +85,7 @@ def test_the_first_cue_of_a_session_is_taken_down_too() -> None:
     """A fresh filter cancels little of the first cue (the test above); while it learns, the shipped canceller
     assumes the echo is as loud as the room has returned the bridge's sound so far, and takes the first cue down
     as far as the fourth (before: about 9 dB less: the vehicle stopped for nothing on a live session's first
-    "going down", python -m tools.bench_feedback_echo, sessions 27 and 28)."""
+    "going down", python -m tools.listen.bench_feedback_echo, sessions 27 and 28)."""
     shipped = _erle_per_cue(load_sound_settings().echo_cancel)
     assert shipped[0] > 15.0 and shipped[0] > shipped[-1] - 5.0, shipped
 
@@ -93,7 +93,7 @@ def test_the_first_cue_of_a_session_is_taken_down_too() -> None:
 def test_the_pilot_talking_over_the_bridge_is_kept(real_speech_dir: Path) -> None:
     """Double talk: what the canceller learns while the pilot speaks over the bridge must not eat the pilot;
     over the pilot's words the pilot stands out at least twice as clearly (3 dB) as in the raw microphone."""
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     stop = next(np.frombuffer(read_wav(r.path), "<i2").astype(np.float64)
                 for r in load_recordings(real_speech_dir, split="test") if r.action == "stop")
@@ -128,10 +128,10 @@ def test_settings_that_are_not_numbers_are_one_line(tmp_path: Path) -> None:
 
 def test_real_stops_as_loud_as_the_bridge_voice_are_spotted_more_often(real_speech_dir: Path) -> None:
     """The held-out stops the spotter hears alone, each said 0.5 s into the bridge's cue as loud as the pilot
-    in the room: with the echo taken out the spotter hears clearly more of them (tools.bench_echo, +0 dB)."""
+    in the room: with the echo taken out the spotter hears clearly more of them (tools.listen.bench_echo, +0 dB)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     settings = load_sound_settings()
@@ -210,17 +210,17 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     """Live, as a session flies (``--listen-wav``'s echo room, real time, the stop path of the session): the pilot
     says "go left", the bridge answers "going left" into the microphone. What the canceller left of its words in
     a silent room (a faint, lone sound, -70 dBFS) sounded like "stay" to the spotter, which normalises the level
-    away: the vehicle stopped after 24 of 44 such answers in a 30-minute session (tools.bench_feedback_echo).
+    away: the vehicle stopped after 24 of 44 such answers in a 30-minute session (tools.listen.bench_feedback_echo).
     Here, through the live path (the session's canceller and its word on its own echo, as shipped): each answer is
     one stretch the spotter hears over the bridge's voice, and at most one of ten stops the vehicle. Not none:
     where the answer falls within the microphone's blocks, which the machine's load moves, still decides some
     (asked for none, it failed 3 times in 23 runs, idle and beside four busy processes). Nor is this where the
     rate is guarded: on this recording even session 23's settings (no comfort noise, the usual threshold) and a
-    canceller that learns nothing stay under two; the rate is measured by tools.bench_echo --alignments and
-    tools.bench_feedback_echo, and test_fewer_stops_... guards the own-echo gate."""
+    canceller that learns nothing stay under two; the rate is measured by tools.listen.bench_echo --alignments and
+    tools.listen.bench_feedback_echo, and test_fewer_stops_... guards the own-echo gate."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     settings = load_sound_settings()
     cue = _cue("going left").astype("<i2").tobytes()
@@ -230,7 +230,7 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     for clip in pilot:
         parts += [clip * 10 ** ((-26.0 - voiced_dbfs(clip)) / 20), np.zeros(int(2.6 * SAMPLE_RATE))]
         answer_at.append((sum(p.size for p in parts) - int(2.35 * SAMPLE_RATE)) / SAMPLE_RATE)
-    # digital silence between the words, as in a recording made clean (tools.bench_feedback_echo's streams)
+    # digital silence between the words, as in a recording made clean (tools.listen.bench_feedback_echo's streams)
     recording = np.clip(np.concatenate(parts), -32768, 32767).astype("<i2").tobytes()
     room = EchoRoom(10 ** ((-26.0 - voiced_dbfs(np.frombuffer(cue, "<i2").astype(np.float64))) / 20), DELAY_S)
     gate = EchoGate(settings.tail_s)
@@ -279,10 +279,10 @@ def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
     normalises the level away: the remains of "fence reached", 17 dB below the microphone, were "stay" for 8 of
     these 100 cues. With the canceller's own-echo gate at 18 dB (as shipped in sounds.toml since session 28), a word
     heard where all the canceller gave out stayed far below the microphone, where it
-    was loud, is dismissed: 5 are left (tools.bench_echo --alignments)."""
+    was loud, is dismissed: 5 are left (tools.listen.bench_echo --alignments)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.bench_echo import spotted_remains
+    from tools.listen.bench_echo import spotted_remains
 
     settings = load_sound_settings()
     # the gate alone: without the post-filter's worst case while the canceller learns, which takes these cues down
@@ -299,10 +299,10 @@ def test_fewer_stops_fire_on_what_is_left_of_the_bridge_voice() -> None:
 def test_the_first_going_down_of_a_session_stops_nothing() -> None:
     """The live failure of sessions 27 and 28: the session's first "going down", heard through a canceller that had
     not yet learned the room, stopped the vehicle ("hold"). In 30 fresh sessions, the cue anywhere in the
-    microphone's blocks: 4 stops with the filter alone, none as shipped (tools.bench_echo.spotted_remains)."""
+    microphone's blocks: 4 stops with the filter alone, none as shipped (tools.listen.bench_echo.spotted_remains)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.bench_echo import spotted_remains
+    from tools.listen.bench_echo import spotted_remains
 
     settings = load_sound_settings()
     spotter = load_stop_spotter(["en"])
@@ -318,7 +318,7 @@ def test_the_first_going_down_of_a_session_stops_nothing() -> None:
 
 def test_a_live_session_answers_stop_nothing() -> None:
     """The microphone of a live session while the bridge spoke, replayed: 20 stretches of ``python -m
-    tools.bench_feedback_echo --minutes 4 --seed 3`` (tests/fixtures/live_cues_echo.npz: what the microphone
+    tools.listen.bench_feedback_echo --minutes 4 --seed 3`` (tests/fixtures/live_cues_echo.npz: what the microphone
     heard, a clean stream with the cues played back as loud as the pilot 60 ms late, and what the bridge played,
     as PlayedEcho had them). What the canceller left of "going left" in that silent room stopped the vehicle:
     with the shipped canceller and spotter, nothing does."""

@@ -27,7 +27,7 @@ from gcs_voice.session.feedback import FEEDBACK_DIR, Cue, cue_for, load_phrases,
 
 LANGUAGES = ("en", "es")
 #: the pilot speaks into the microphone from closer than the speaker beside it: the bridge's voice arrives this
-#: much below the pilot's (tools/bench_echo.py measures the stop spotter at other levels, 0 dB included)
+#: much below the pilot's (tools/listen/bench_echo.py measures the stop spotter at other levels, 0 dB included)
 ECHO_BELOW_PILOT_DB = 10.0
 STOP_SPOTTER_TOML = Path(__file__).resolve().parent.parent / "gcs_voice" / "asr" / "stop_spotter.toml"
 
@@ -173,8 +173,8 @@ def _listen(recording: bytes, bridge_pcm: bytes, play_at_s: float, gate: EchoGat
 
 
 def _voiced_dbfs(pcm: bytes) -> float:
-    """Level of the voiced frames (tools.bench_stream.voiced_level): speech, not its pauses."""
-    from tools.bench_stream import voiced_level
+    """Level of the voiced frames (tools.listen.streams.voiced_level): speech, not its pauses."""
+    from tools.listen.streams import voiced_level
 
     return float(20 * np.log10(voiced_level(np.frombuffer(pcm, "<i2").astype(np.float64) / 32768)[0] + 1e-9))
 
@@ -202,7 +202,7 @@ def test_the_bridge_does_not_hear_its_own_voice_but_would_without_the_gate() -> 
 def test_a_real_stop_said_over_the_bridge_voice_is_spotted(real_speech_dir: Path) -> None:
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     stops = [read_wav(r.path) for r in load_recordings(real_speech_dir, split="test") if r.action == "stop"]
@@ -242,7 +242,7 @@ CHECKED_MODES = {"en": ("GUIDED", "RTL", "LAND", "BRAKE", "LOITER", "POSHOLD", "
 @pytest.mark.parametrize("lang", LANGUAGES)
 def test_no_cue_is_heard_as_a_stop_by_the_stop_spotter_of_its_language(lang: str) -> None:
     """The spotter listens while the bridge speaks: a cue it took for a stop would stop the vehicle (seen:
-    "fence reached" after the warning beeps was "stay" 11 times in a 30-minute session, tools/bench_feedback_echo.py).
+    "fence reached" after the warning beeps was "stay" 11 times in a 30-minute session, tools/listen/bench_feedback_echo.py).
     A session in both languages (``--lang auto``) runs both spotters: not clean yet (docs/bridge.md)."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
@@ -356,7 +356,7 @@ def test_the_bridge_waits_for_the_pilot_to_finish_a_word_before_it_speaks(real_s
     """A cue begun over a word makes the microphone deaf mid-word: the word is cut in two (a stop so cut was
     heard by neither half in a live session). The bridge waits for the segmenter to close the pilot's utterance,
     and the word is heard whole; with no wait, the same word is cut (so this test can fail)."""
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     word = read_wav(next(r.path for r in load_recordings(real_speech_dir, split="test") if r.action == "go_forward"))
     utterances, done_t, cue_t, _bus = _cue_begun_while_the_pilot_speaks(word, 2.0)

@@ -375,7 +375,7 @@ def test_spanish_is_heard_with_seseo() -> None:
     """Issue 31, item 4: most Spanish speakers say "z" and "c" (before e, i) as "s", and Whisper writes what it hears
     with any of the three letters. Pronounced as in Spain ("θ"), each such spelling was one more sound away from the
     phrase, and these commands were rejected. What Whisper base wrote for espeak-ng es-419 speech, with the margin and
-    class gap it gave (python -m tools.bench_spanish, the cache of its recognise stage)."""
+    class gap it gave (python -m tools.speech.bench_spanish, the cache of its recognise stage)."""
     for phrase, transcript, margin, gap, action in (("avanza", "Amasa", -0.89, 0.66, "go_forward"),
                                                     ("hacia atrás", "hacia aflaz", -0.30, 1.40, "go_back"),
                                                     ("marcha atrás", "Marcha aplaz", -0.62, 3.26, "go_back")):
@@ -395,7 +395,7 @@ def test_a_command_written_as_one_word_is_judged_by_its_sound() -> None:
     of one of its phrases run together up to the last (the word that names the side or the motors). A run that stops
     short of it ("hacia la", which every side has) is no evidence: espeak-ng "hacia atrás" under noise, heard
     "Aseafla" and scored nearest "a la izquierda", stays undone. Transcripts, margins and class gaps as Whisper base
-    gave them (python -m tools.bench_spanish, its recognise cache)."""
+    gave them (python -m tools.speech.bench_spanish, its recognise cache)."""
     for phrase, transcript, margin, gap, action in (("desarmar motores", "Desarmamotores", -0.57, 5.24, "disarm"),
                                                     ("a la derecha", "Aramelecha", -0.45, 0.87, "go_right"),
                                                     ("a la derecha", "Aramelecha", -1.09, 3.50, "go_right")):
@@ -431,7 +431,7 @@ def test_a_transcript_sharing_almost_no_sound_with_its_phrase_does_nothing_in_ev
 def test_a_stray_word_is_not_joined_to_a_word_of_the_class() -> None:
     """espeak-ng "gire a la izquierda" (turn_left) was heard "Y la la izquierda.", within the margin of "hacia la
     izquierda" (go_left): "y" + "la" sounds near "la", so the stray "y" was read as half of a split word and the
-    drone would have moved left instead of turning (python -m tools.bench_spanish). A pair is joined only when it
+    drone would have moved left instead of turning (python -m tools.speech.bench_spanish). A pair is joined only when it
     sounds nearer a word of the class than its second word alone."""
     decision = get_matcher("phonetic").decide(_scored_in("hacia la izquierda", "Y la la izquierda.", "es"), [ES])
     assert decision.action is None and "'y' is in no go_left phrase" in decision.reason, decision

@@ -13,7 +13,7 @@ from gcs_voice.domain.dictionary import load_language
 from gcs_voice.understanding import MATCHERS, get_matcher
 
 
-from tools import make_corpus
+from tools.speech import make_corpus
 
 pytestmark = pytest.mark.slow
 EN = load_language("en")

@@ -130,7 +130,7 @@ def test_whisper_lines_say_what_whisper_wrote(whisper_model_dir, real_speech_dir
 def test_spanish_sentences_with_a_command_word_in_passing_do_nothing(whisper_model_dir, tmp_path):
     """Issue 10 item 7: ordinary Spanish with "para", "derecha", "sube" in passing, through the default
     engine (Whisper, mode score) and matcher, must not move the drone; a Spanish command still does.
-    (The 60 sentences of tools/corpus_sentences.toml [es].passing are counted by the benchmarks.)"""
+    (The 60 sentences of tools/speech/corpus_sentences.toml [es].passing are counted by the benchmarks.)"""
     said = [("para un proyecto", "es+m3"), ("muestra la memoria", "es+f2"), ("sube el volumen", "es-419+m1"),
             ("a la derecha está la cocina", "es+f4")]
     files = [str(say(text, tmp_path / f"{i}.wav", voice)) for i, (text, voice) in enumerate(said)]

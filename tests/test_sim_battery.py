@@ -6,7 +6,7 @@ from __future__ import annotations
 import math
 
 import pytest
-from tools.lockstep_gcs import LockstepGcs
+from tools.flight.lockstep_gcs import LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 

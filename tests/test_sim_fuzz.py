@@ -1,4 +1,4 @@
-"""A few seconds of fuzz on UDP and TCP against each personality (the long run: ``python -m tools.fuzz_sim``).
+"""A few seconds of fuzz on UDP and TCP against each personality (the long run: ``python -m tools.sim.fuzz_sim``).
 
 The simulated clock never runs ahead of the wall clock (it did under a flood, then froze every stream until
 the wall clock caught up). Afterwards the process is alive, HEARTBEAT comes at 1 Hz on a fresh link and on UDP, a normal take-off
@@ -13,7 +13,7 @@ import time
 
 import pytest
 from gcs_voice.session.sim_process import BundledSim
-from tools.fuzz_sim import Station, check_serving, fuzz, learn_sim_address, rss_kb
+from tools.sim.fuzz_sim import Station, check_serving, fuzz, learn_sim_address, rss_kb
 
 #: Resident memory may move by allocator noise, never by a leak of every message (4000+ are sent).
 RSS_GROWTH_LIMIT_KB = 8 * 1024

@@ -9,7 +9,7 @@ import math
 import struct
 
 import pytest
-from tools.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
+from tools.flight.lockstep_gcs import VELOCITY_ONLY, VELOCITY_YAW, LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 

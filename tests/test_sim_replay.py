@@ -14,7 +14,7 @@ from collections import defaultdict
 from pathlib import Path
 
 import pytest
-from tools.lockstep_gcs import LockstepGcs
+from tools.flight.lockstep_gcs import LockstepGcs
 
 from pymavlink import mavutil
 from pymavlink.dialects.v20 import ardupilotmega as M

@@ -6,7 +6,7 @@ import math
 import random
 
 import pytest
-from tools.lockstep_gcs import VELOCITY_YAW, LockstepGcs
+from tools.flight.lockstep_gcs import VELOCITY_YAW, LockstepGcs
 
 from pymavlink.dialects.v20 import ardupilotmega as M
 

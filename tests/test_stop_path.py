@@ -46,7 +46,7 @@ def test_a_stop_heard_again_over_the_bridge_voice_is_sent_once_and_a_later_one_a
     require_parts("sim_bridge.cli")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from gcs_voice.audio.sources import read_wav
-    from tools.real_speech import load_recordings
+    from tools.speech.real_speech import load_recordings
 
     spotter = load_stop_spotter(["en"])
     pcm = next(read_wav(r.path) for r in load_recordings(real_speech_dir, split="test")

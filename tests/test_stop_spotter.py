@@ -13,8 +13,8 @@ pytest.importorskip("pocketsphinx")
 
 
 def _held_out(real_speech_dir: Path, truth_or_word: str) -> list[Path]:
-    """Test-split recordings (tools.real_speech's speaker split) of one class, or of one non-command word."""
-    from tools.real_speech import load_recordings
+    """Test-split recordings (tools.speech.real_speech's speaker split) of one class, or of one non-command word."""
+    from tools.speech.real_speech import load_recordings
 
     return [r.path for r in load_recordings(real_speech_dir, split="test")
             if r.action == truth_or_word or (r.action is None and r.path.name.startswith(truth_or_word + "_"))]

@@ -1,7 +1,7 @@
 """gcs-voice beside QGroundControl: two ground stations on one bundled-sim vehicle, in the usual setups.
 
 Each test flies the same story with the real simulator process, the bridge (key requests, no speech
-needed) and a second station that acts like QGroundControl (tools/qgc_like.py: 255/190, HEARTBEAT at
+needed) and a second station that acts like QGroundControl (tools/flight/qgc_like.py: 255/190, HEARTBEAT at
 1 Hz, parameter reads, its own mode change):
 
 take off by voice; the QGroundControl-like station reads parameters meanwhile and sees the voice motion
@@ -29,8 +29,8 @@ from typing import Callable, Iterator
 import pytest
 from conftest import IN_CI
 from e2e_support import SPEEDUP, require_parts
-from tools.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
-from tools.soak_two_stations import mavproxy_fan_out, stop_process
+from tools.flight.qgc_like import QGC_COMPONENT, QGC_SYSTEM, QgcLikeStation
+from tools.flight.soak_two_stations import mavproxy_fan_out, stop_process
 from pymavlink import mavutil
 
 from gcs_voice.actions.mapper import ActionMapper
@@ -263,7 +263,7 @@ def test_mavproxy_fan_out_arducopter(tmp_path: Path, ports: tuple[int, int]) -> 
     assert takeover["msg"].startswith("another station took over: BRAKE")
     assert story.other_station == (QGC_SYSTEM, QGC_COMPONENT)
     # QGroundControl hears gcs-voice's ACKs too (the router fans everything out): addressed to 255/231, so a
-    # station that checks the addressee leaves them alone (tools/qgc_like.py does; see docs/link.md for
+    # station that checks the addressee leaves them alone (tools/flight/qgc_like.py does; see docs/link.md for
     # QGroundControl itself)
     assert qgc.acks_to((QGC_SYSTEM, 231)), "the router did not fan gcs-voice's ACKs out (nothing to tell apart)"
 

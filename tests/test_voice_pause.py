@@ -23,7 +23,7 @@ def test_a_rejected_stop_stays_stopped_and_rejected_speech_resumes(whisper_model
                                                                     real_speech_dir: Path) -> None:
     require_parts("faster_whisper")
     from gcs_voice.session.run import load_voice
-    from tools.real_speech import condition_audio, load_recordings
+    from tools.speech.real_speech import condition_audio, load_recordings
 
     recognizer, matcher, dictionaries, lang = load_voice("en", "whisper", str(whisper_model_dir), None)
     bridge = Bridge(VehicleLink("udpin:127.0.0.1:0"), ActionMapper(), EventBus(), 1.5)  # never opened

@@ -43,7 +43,7 @@ class SphinxRecognizer:
 
     def __init__(self, dictionaries: Sequence[Dictionary], model: str | None = None, mode: str = "grammar",
                  settings: dict | None = None):
-        """``settings`` overrides ``[sphinx]`` of engines.toml (tools/bench_sphinx_real.py sweeps them)."""
+        """``settings`` overrides ``[sphinx]`` of engines.toml (tools/speech/bench_sphinx_real.py sweeps them)."""
         others = sorted({d.language for d in dictionaries} - set(LANGUAGES))
         if others:
             raise ModelError(f"the sphinx engine recognises English only, not {', '.join(others)}: "

@@ -21,7 +21,7 @@ decisions once its thresholds were re-chosen: docs/bench/real.md). The evidence 
 (means, so a transcript longer than a command is not favoured by its length). It is 0 when Whisper
 itself heard a dictionary phrase, slightly negative when a phrase is nearly what it heard, and far below when the speech was something else ("muestra la
 memoria" heard perfectly does not become "derecha"). One threshold on it (``min_margin`` in
-``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.bench_real tune``).
+``gcs_voice/understanding/thresholds.toml``) was chosen on real speakers (``python -m tools.speech.bench_real tune``).
 
 An amount after the command ("Go forward 3 meters.", read by ``gcs_voice.domain.amounts``) is weighed against
 the amounts that sound like it, in the transcript as Whisper wrote it. When the words before it are no phrase
@@ -275,7 +275,7 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
     chosen = order[:max(1, top_k)]
     # A command Whisper wrote word for word is always scored: when its tokens differ from the greedy
     # pass's ("Desarma los motores" written with other pieces), the path evidence ranks it low, and
-    # with few forms scored it was left out (espeak-ng "desarma los motores", python -m tools.bench_spanish).
+    # with few forms scored it was left out (espeak-ng "desarma los motores", python -m tools.speech.bench_spanish).
     said = normalize_text(heard)
     exact = [i for i in order
              if forms.phrases[i].action != NOT_A_COMMAND and normalize_text(forms.phrases[i].text) == said]
@@ -290,7 +290,7 @@ def preselect(forms: PhraseForms, greedy: Sequence[int], steps: Sequence[np.ndar
             chosen[-1] = command
     # At least one rival is scored: when every form chosen says one class ("Black." for a "left" said in a
     # kitchen: "back", "go back", "move back", "backwards"), no other class was judged, the class gap read as
-    # infinite and the weakest evidence acted (python -m tools.bench_stream --room --split dev: go_back for
+    # infinite and the weakest evidence acted (python -m tools.listen.bench_stream --room --split dev: go_back for
     # "left", twice). The best-ranked form of another class (or a not-command) takes the last place that is
     # not the command Whisper wrote.
     classes = {forms.phrases[i].action for i in chosen}

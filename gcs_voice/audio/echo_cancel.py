@@ -17,7 +17,7 @@ as it is.
 
 A fresh filter knows nothing of the room, and cancels next to nothing of the bridge's first words: what the
 spotter heard of the session's first "going down" was the bridge's own voice, and it stopped the vehicle
-(python -m tools.bench_feedback_echo, sessions 27 and 28, both 28 s in). Until it has heard ``learn_s`` of its
+(python -m tools.listen.bench_feedback_echo, sessions 27 and 28, both 28 s in). Until it has heard ``learn_s`` of its
 own sound, the post-filter therefore takes down every bin the bridge's sound could reach: it assumes the room
 returns what was played in the last ``length_s`` at the loudness it has returned it so far (the microphone's
 power over the reference's), as echo cancellers do while they converge.

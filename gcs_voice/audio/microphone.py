@@ -62,7 +62,7 @@ ROOM_S = 3.0
 #: a word carried across the edge is marked as begun over the bridge's own sound when its first EDGE_S (from
 #: LOOKBACK_S before the edge, less the bridge's echo) was this far above the quiet: the room before the bridge
 #: spoke, or the quietest the microphone less the echo was while it spoke, whichever is louder (chosen on the dev
-#: speakers by python -m tools.bench_deaf_edge)
+#: speakers by python -m tools.listen.bench_deaf_edge)
 MARK_ABOVE_DB = 9.0
 #: speech under way at the edge that the segmenter has not found within this long is let go
 CARRY_LIMIT_S = 1.0

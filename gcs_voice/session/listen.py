@@ -242,7 +242,7 @@ class VoicePipeline:
     def settle_pause(self, bridge: Bridge, decision: Decision, more_waiting: bool = False) -> None:
         """After a rejected decision: resume the paused motion, or stay stopped if what was heard was nearest a
         stop (the engine's words, or its best hypothesis, are a stop phrase: heard, but not surely enough to act
-        on; stopping is always safe). On the dev speakers of ../shared/speech (``python -m tools.bench_real stays``)
+        on; stopping is always safe). On the dev speakers of ../shared/speech (``python -m tools.speech.bench_real stays``)
         this keeps both real stops Whisper rejected (kitchen noise, 12 dB), and stays stopped after 25 of the 364
         other utterances it rejected, clean and in that noise (a false stop is a pause; the stop spotter fires
         on far more: docs/bench/stop.md).

@@ -21,7 +21,7 @@ MATCHERS: dict[str, str] = {
     "phonetic": "gcs_voice.understanding.phonetic:PhoneticMatcher",
 }
 
-#: The matcher used when none is named (chosen by tools/bench_accuracy.py, see docs/bench/accuracy.md).
+#: The matcher used when none is named (chosen by tools/speech/bench_accuracy.py, see docs/bench/accuracy.md).
 DEFAULT_MATCHER = "phonetic"
 
 

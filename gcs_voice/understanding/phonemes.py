@@ -21,7 +21,7 @@ __all__ = ["PhonemeError", "ipa", "phoneme_tokens", "library_name", "ESPEAK_VOIC
 #: dictionary language -> espeak-ng voice used to pronounce it. Spanish is pronounced as in Latin America
 #: (es-419: seseo, "z" and "c" before e/i sound "s"), as most Spanish speakers say it: Whisper writes what it hears
 #: with any of the three letters ("Asiala" for "hacia la"), and Spain's "θ" would make each such spelling a
-#: different sound (issue 31, item 4; chosen by python -m tools.bench_spanish: more commands right, none wrong).
+#: different sound (issue 31, item 4; chosen by python -m tools.speech.bench_spanish: more commands right, none wrong).
 ESPEAK_VOICE = {"en": "en-us", "es": "es-419"}
 #: multi-character phonemes kept as one token (longest first).
 _MULTI = sorted(
