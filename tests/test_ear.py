@@ -47,7 +47,7 @@ def scorer(whisper_model_dir):
 @pytest.mark.slow
 def test_the_shipped_ear_hears_held_out_real_speakers(scorer, real_speech_dir):
     """On clean held-out recordings (speakers the ear never heard), the ear's first class is what was said."""
-    from tools.real_speech import load_recordings, read_wav
+    from tools.speech.real_speech import load_recordings, read_wav
 
     recs = [r for r in load_recordings(split="test") if r.kind == "command"]
     picked = [next(r for r in recs if r.action == a) for a in ("up", "down", "go_left", "go_right", "stop")]
@@ -60,7 +60,7 @@ def test_the_shipped_ear_hears_held_out_real_speakers(scorer, real_speech_dir):
 
 @pytest.mark.slow
 def test_the_ear_says_none_to_speech_that_is_no_command(scorer, real_speech_dir):
-    from tools.real_speech import load_recordings, read_wav
+    from tools.speech.real_speech import load_recordings, read_wav
 
     sentences = [r for r in load_recordings(split="test") if r.kind == "sentence"][:4]
     for rec in sentences:

@@ -39,6 +39,12 @@ COMMANDS: list[tuple[str, str, str]] = [
      "docs/bench/sphinx_real.md"),
     ("speech.bench_asr_speed", "speed (and command accuracy) of the three recognisers on this machine",
      "docs/bench/asr.md"),
+    ("speech.train_ear", "trains the domain ear (a classifier over Whisper base's encoder) from the dev speakers, "
+     "synthetic voices and noise halves; --tiny: CI's check that the recipe learns", ""),
+    ("speech.ear_rows", "Whisper's recognitions and the ear's features of the real recordings, cached for "
+     "bench_ear", ""),
+    ("speech.bench_ear", "the domain ear on held-out speakers, each noise's unheard half and noises it never heard; "
+     "tune: its thresholds on dev", "docs/bench/ear.md"),
     ("listen.bench_stream", "continuous streams of real speech over real noise through `gcs-voice recognize "
      "--segment`: commands right, false actions, deaf stretches", "docs/bench/stream.md (stream_*.md, vad_*.md)"),
     ("listen.bench_listen", "a whole noisy flight heard through the live microphone path, and the same clips "

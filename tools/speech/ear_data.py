@@ -1,7 +1,7 @@
 """What the domain ear learns from and is judged on: real speakers, synthetic voices, noise halves.
 
 The rules of issue 51, in one place:
-- training uses the **dev** speakers of ../shared/speech (tools.real_speech's split), synthetic voices that
+- training uses the **dev** speakers of ../shared/speech (tools.speech.real_speech's split), synthetic voices that
   no held-out benchmark uses, and the **first half** of each real noise (``noise_half(stem, "train")``);
 - the held-out speakers are judged over the **second half** of each noise, and each noise is also judged by an
   ear trained without it at all (a noise it never heard);
@@ -26,7 +26,7 @@ import numpy as np
 
 from gcs_voice.asr.ear import NONE
 from gcs_voice.domain.dictionary import load_language
-from tools.real_speech import SHARED, Recording, active_power, load_recordings, read_wav
+from tools.speech.real_speech import SHARED, Recording, active_power, load_recordings, read_wav
 
 __all__ = ["Clip", "trainable", "clip_audio", "features", "NOISES", "EVAL_CONDITIONS", "noise_half", "mix_half", "real_clips", "synthetic_plan",
            "UNSEEN_WORDS", "noise_plan", "speak", "condition_audio"]
@@ -75,7 +75,7 @@ class Clip:
 
 
 def real_clips(recordings: Iterable[Recording] | None = None) -> list[Clip]:
-    """Every real recording as a Clip (its split is tools.real_speech's, by speaker)."""
+    """Every real recording as a Clip (its split is tools.speech.real_speech's, by speaker)."""
     recs = load_recordings() if recordings is None else recordings
     return [Clip(str(r.path.relative_to(SHARED / "speech")), r.action or NONE, r.lang, r.kind, "real", r.speaker,
                  r.split, r.word if r.kind != "sentence" else "sentence", path=r.path) for r in recs]
@@ -153,7 +153,7 @@ _PIPER: dict[str, object] = {}
 
 def speak(clip: Clip, seed: int = 0) -> np.ndarray:
     """A synthetic clip's audio: espeak-ng, or Piper for the natural voice, at 16 kHz."""
-    from tools.make_corpus import PiperSpeaker, synthesise
+    from tools.speech.make_corpus import PiperSpeaker, synthesise
 
     voice, wpm, pitch = clip.voice  # type: ignore[misc]
     if voice.startswith("piper:"):

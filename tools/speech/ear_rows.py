@@ -21,7 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_voice.asr.base import Hypothesis, Recognition
-from tools.real_speech import SHARED
+from tools.speech.real_speech import SHARED
 from tools.speech.ear_data import EVAL_CONDITIONS, Clip, clip_audio, condition_audio, features, real_clips
 
 REPO = Path(__file__).resolve().parents[2]

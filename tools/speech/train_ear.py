@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_voice.asr.ear import EAR_PATH, NONE, DomainEar
-from tools.real_speech import SHARED
+from tools.speech.real_speech import SHARED
 from tools.speech.ear_data import (NOISES, TRAIN_SNRS, Clip, clip_audio, condition_audio, features, noise_plan,
                                    real_clips, synthetic_plan, trainable)
 from tools.speech.ear_rows import decode_vector, encode_vector
