@@ -38,7 +38,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("speech.bench_sphinx_real", "PocketSphinx (the fallback engine) on real speech, its settings swept",
      "docs/bench/sphinx_real.md"),
     ("speech.bench_asr_speed", "speed (and command accuracy) of the three recognisers on this machine",
-     "docs/bench/asr.md"),
+     ""),
     ("speech.train_ear", "trains the domain ear (a classifier over Whisper base's encoder) from the dev speakers, "
      "synthetic voices and noise halves; --tiny: CI's check that the recipe learns", ""),
     ("speech.ear_rows", "Whisper's recognitions and the ear's features of the real recordings, cached for "

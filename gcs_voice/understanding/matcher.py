@@ -320,12 +320,14 @@ class Matcher:
         if not ear:
             return "", recognition
         phrases = {p.text: (p, d) for d in dictionaries for p in d.phrases}
+        heard = normalize_text(recognition.transcript)
+        if heard and _says_no_class(heard, dictionaries):
+            return "", recognition  # "Go": words every side says; the ear may not pick the side for Whisper
         first = recognition.hypotheses[0].text if recognition.hypotheses else ""
         action = phrases[first][0].action if first in phrases else ""
         if action and ear.get(action, 0.0) >= limits.get("vouch", math.inf):
             return action, recognition
         top = max(ear, key=ear.__getitem__)
-        heard = normalize_text(recognition.transcript)
         if (top == EAR_NONE or ear[top] < limits.get("alone", math.inf) or not heard
                 or recognition.extra.get("transcript_cut")):
             return "", recognition
@@ -446,6 +448,20 @@ EAR_WAIVES = frozenset({"margin", "class_gap", "free_logprob"})
 
 #: the one class a negation does not refuse: "don't stop" stopping costs a pause, a refused stop a wall
 ALWAYS_SAFE = "stop"
+
+
+def _says_no_class(heard: str, dictionaries: Sequence[Dictionary]) -> bool:
+    """Whether every word written is a word of phrases of several classes ("go", "move", "turn", "a la"), so that
+    what was written names no class of its own."""
+    for dictionary in dictionaries:
+        words = dictionary.strip_skip_words(heard).split()
+        classes: dict[str, set[str]] = {}
+        for phrase in dictionary.phrases:
+            for word in phrase.match_key.split():
+                classes.setdefault(word, set()).add(phrase.action)
+        if words and all(len(classes.get(w, ())) > 1 for w in words):
+            return True
+    return False
 
 
 def _runs(words: Sequence[str]) -> list[tuple[str, ...]]:

@@ -1,6 +1,6 @@
 """Speed (and, on the side, command accuracy) of the three recognisers on this machine.
 
-    nice -n 10 python -m tools.speech.bench_asr_speed            # writes docs/bench/asr.md
+    nice -n 10 python -m tools.speech.bench_asr_speed --out asr.md   # prints the table; --out writes it too
 
 Corpora: ../shared/speech (95 real English recordings: 75 commands, 20 other words; labels.tsv) for
 Sphinx and Whisper; espeak-ng Korean for Vosk (the only Vosk model here is Korean). Decisions use the
@@ -90,7 +90,7 @@ def main() -> None:
     parser.add_argument("--speech", type=Path, default=REPO.parent / "shared" / "speech")
     parser.add_argument("--whisper-model", default=str(REPO.parent / "shared" / "models" / "faster-whisper-base"))
     parser.add_argument("--whisper-every", type=int, default=3, help="use every Nth recording for Whisper (slow)")
-    parser.add_argument("--out", type=Path, default=REPO / "docs" / "bench" / "asr.md")
+    parser.add_argument("--out", type=Path, help="also write the table to this file")
     args = parser.parse_args()
 
     real = real_corpus(args.speech, 1)
@@ -120,8 +120,9 @@ def main() -> None:
     for r in rows:
         lines.append(f"| {r['label']} | {r['n']} | {r['load_s']:.1f} | {r['median_ms']:.0f} | {r['p90_ms']:.0f} | "
                      f"{r['rtf']:.2f} | {r['right']} | {r['accepted']} |")
-    args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines) + "\n" + NOTES, encoding="utf-8")
+    if args.out:
+        args.out.parent.mkdir(parents=True, exist_ok=True)
+        args.out.write_text("\n".join(lines) + "\n" + NOTES, encoding="utf-8")
     print("\n".join(lines))
 
 
