@@ -32,10 +32,15 @@ def test_the_spotted_stop_is_on_the_wire_before_the_main_decision(tmp_path: Path
                          extra=["--engine", "whisper", "--model", str(whisper_model_dir)], timeout_s=600.0)
     assert result.returncode == 0, result.stderr + result.stdout[-2000:]
     events = result.events
-    spotted = [e for e in events if e["kind"] == "command" and e.get("origin") == "spotter"]
-    assert spotted and spotted[0]["action"] == "stop", [e["msg"] for e in events]
+    # the spotter's stop: a stop command, or (Whisper has a domain ear to settle it) a hold of the moving vehicle
+    spotted = next((e for e in events if e["kind"] == "spotted"), None)
+    assert spotted is not None, [e["msg"] for e in events]
+    held = [e for e in events if e["t"] >= spotted["t"] and e.get("sent_t")
+            and ((e["kind"] == "command" and e.get("origin") == "spotter" and e["action"] == "stop")
+                 or (e["kind"] == "paused" and e.get("state") == "paused"))]
+    assert held, [e["msg"] for e in events]
     heard_stop = next(e for e in events if e["kind"] == "heard" and e["source"] == stop.name)
-    stop_cmd = spotted[-1]
+    stop_cmd = held[0]
     # order of events: utterance end -> spotted stop sent -> thinking... -> the recogniser's answer
     assert stop_cmd["sent_t"] < heard_stop["t"]
     assert any(e["kind"] == "thinking" and e["source"] == stop.name for e in events)

@@ -20,7 +20,10 @@ KINDS: dict[str, str] = {
     "session": "start/end of a session: phase, argv, versions, files",
     "link": "state connected|lost|restored, autopilot, vehicle ids",
     "spotted": "the stop spotter heard a stop word (a stop follows at once): word, utterance_end_t, spotted_t, "
-               "over_voice; repeat (no stop follows: the stop just sent heard again over the bridge's voice)",
+               "over_voice; repeat (no stop follows: the stop just sent heard again over the bridge's voice); "
+               "provisional (a moving vehicle is held instead, and the utterance's decision settles it)",
+    "settled": "a provisional hold spotted over the bridge's voice, settled by the domain ear (no decision follows "
+               "such audio): stay, ear_stop",
     "own_echo": "over the bridge's voice, the stop spotter heard a stop word in nothing but what the echo canceller "
                 "left of the bridge's own sound (no stop): words",
     "paused": "the motion held while an utterance is decided (state paused), then resumed after speech that was "

@@ -93,6 +93,11 @@ class StopPath:
         self.provisional = False
         #: a provisional hold was asked and no decision has settled it yet
         self.holding = False
+        #: the domain ear's probability of "stop" for some audio, and the least that keeps a hold stopped: settles a
+        #: hold spotted over the bridge's own voice, which no decision follows (set with ``provisional``)
+        self.ear_stop: Callable[[bytes], float | None] | None = None
+        self.spotted_stop_min = 0.0
+        self._pcm: list[bytes] = []
         self._stream: SpotStream | None = None
         self._fired = False
         self._last_stop: Request | None = None  # the stop this path sent last
@@ -107,6 +112,9 @@ class StopPath:
         if self._stream is None:
             self._stream = self.spotter.start_stream(over_voice, self.own_echo if over_voice else None)
             self._fired = False
+            self._pcm = []
+        if over_voice and self.provisional:
+            self._pcm.append(pcm)
         word = self._stream.accept(pcm)
         if word and not self._fired:
             self._fired = True
@@ -125,7 +133,23 @@ class StopPath:
         if hit.fired and not self._fired:
             self._stop(bridge, hit.word, end_t, during=False, over_voice=stream.over_voice)
         self._fired = False
+        if stream.over_voice and self.holding:
+            self._settle_over_voice(bridge, b"".join(self._pcm), end_t)
+        self._pcm = []
         return hit.word
+
+    def _settle_over_voice(self, bridge: Bridge, pcm: bytes, end_t: float | None) -> None:
+        """A hold spotted over the bridge's own voice: no decision will settle it (the segmenter gives what was
+        heard over its voice no decision of its own), so the domain ear does, on the audio the spotter heard:
+        stopped, unless the ear is sure it was no stop."""
+        self.holding = False
+        p = self.ear_stop(pcm) if self.ear_stop is not None else None
+        stay = p is None or p >= self.spotted_stop_min
+        self.bus.emit("settled", f"the stop heard over the bridge's voice was "
+                      f"{'taken as a stop' if stay else 'no stop'} (domain ear: stop {p if p is not None else float('nan'):.0%})",
+                      stay=stay, ear_stop=p, utterance_end_t=end_t)
+        now = time.time()
+        bridge.submit(Request(STAY if stay else RESUME, "spotter", None, end_t if end_t is not None else now, now))
 
     def take_hold(self) -> bool:
         """Whether a provisional hold waits for a decision; the decision at hand settles it."""
@@ -206,8 +230,10 @@ class VoicePipeline:
         #: a spotted stop is settled by the decision when the recogniser has a domain ear (gcs_voice/asr/ear.py):
         #: the motion resumes after speech that was not understood only if the ear gives "stop" less than this
         self.spotted_stop_min = _spotted_stop_min(recognizer)
-        if self.stop_path is not None:
-            self.stop_path.provisional = self.spotted_stop_min is not None
+        if self.stop_path is not None and self.spotted_stop_min is not None:
+            self.stop_path.provisional = True
+            self.stop_path.spotted_stop_min = self.spotted_stop_min
+            self.stop_path.ear_stop = lambda pcm: _ear_stop(recognizer, pcm)
         #: the domain ear's probability of "stop" for the last utterance heard (None: no ear)
         self.last_ear_stop: float | None = None
         #: feed recorded PCM at the pace it was spoken (as a microphone would), so streaming engines
@@ -526,3 +552,13 @@ def _spotted_stop_min(recognizer: Any) -> float | None:
     if getattr(recognizer, "ear", None) is None:  # only Whisper in scoring mode has one
         return None
     return ear_limits(getattr(recognizer, "name", "")).get("spotted_stop")
+
+
+def _ear_stop(recognizer: Any, pcm: bytes) -> float | None:
+    """The domain ear's probability of "stop" for 16 kHz int16 audio (None: it heard nothing to judge)."""
+    import numpy as np
+
+    audio = np.frombuffer(pcm, "<i2").astype(np.float32) / 32768.0
+    if audio.size < 1600:
+        return None
+    return recognizer.hear(audio).get("ear:stop")

@@ -332,7 +332,9 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     if args.stage == "tune":
         return tune(args.write)
-    text = report()
+    from tools.report import header
+
+    text = header("tools.speech.bench_spanish", argv) + report()
     out = getattr(args, "out", DOC)
     out.write_text(text, encoding="utf-8")
     print(text)
