@@ -181,7 +181,7 @@ def test_silero_splits_real_utterances_over_kitchen_noise_at_12_db(real_speech_d
 
     The energy VAD merged such utterances (29 segments for 60); the streaming Silero VAD must not: every
     utterance is overlapped by exactly one segment, and no segment spans two. A segment on noise alone
-    (a clatter between utterances) is allowed here; the dev sweep counts them (docs/bench/vad_sweep.md),
+    (a clatter between utterances) is allowed here; the dev sweep counts them (docs/bench/stream.md, Tried and not taken),
     and the recogniser decides them like any other (docs/bench/stream.md counts false actions on noise).
     (It does miss some quiet one-word recordings: see docs/bench/stream.md for the counts.)
     """

@@ -19,6 +19,9 @@ stop), whether the segmenter's utterance of it was marked as begun deaf, and (``
 decision made of the utterances (Whisper base, the shipped matcher; a marked one acts only if it is a stop).
 
     python -m tools.listen.bench_deaf_edge --split dev --out docs/bench/deaf_edge_dev.md
+
+Its held-out outcome: docs/bench/feedback_echo.md (Tried and not taken); its last full reports: git history:
+docs/bench/deaf_edge_*.md.
 """
 
 from __future__ import annotations

@@ -118,7 +118,7 @@ class StreamSpec:
 
 
 #: pauses of a pilot who speaks now and then: minutes of noise with little speech, where a drifting segmenter
-#: goes deaf (docs/bench/vad_memory_sweep.md)
+#: goes deaf (docs/bench/stream.md, Tried and not taken; git history: docs/bench/vad_memory_sweep.md)
 SPARSE = (5.0, 40.0)
 #: issue 30's room: 5-minute streams at 12 dB over each noise and over the four in turn, at one level and
 #: with levels varying +-6 dB, and 30-minute streams (a whole flight) over the four in turn: talkative both ways,

@@ -5,7 +5,9 @@ measured SNR) from the dev part of ``../shared/speech``: ``tools.speech.real_spe
 the one speaker split of every real-speech tool (this file has no split of its own), never the test
 speakers that bench_stream reports on. It segments it with each start/end threshold pair and counts:
 segments, utterances found as exactly one segment, utterances missed (no segment), and segments on noise
-alone. No recogniser runs: this is the segmenter only. The chosen pair goes in ``gcs_voice/audio/vad.toml``.
+alone. No recogniser runs: this is the segmenter only. The chosen pair goes in ``gcs_voice/audio/vad.toml``;
+the pairs not taken are in docs/bench/stream.md (Tried and not taken; this sweep's last full report:
+git history: docs/bench/vad_sweep.md).
 
     python -m tools.listen.sweep_vad --out docs/bench/vad_sweep.md
 """

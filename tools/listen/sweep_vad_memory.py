@@ -9,7 +9,9 @@ the test speakers the benchmarks report on), two ways: a talkative room (pauses 
 a pilot who speaks now and then (pauses 5-40 s: long noise without speech, where the drift shows), and
 segments each with every ``memory_s``. No recogniser runs: this counts utterances the segmenter cut
 (commands, and all) and segments on noise alone. The recogniser's side of the choice is
-``python -m tools.listen.bench_stream --split dev --vad-settings ...`` (docs/bench/vad_memory.md).
+``python -m tools.listen.bench_stream --split dev --vad-settings ...``. Both, and the values not taken:
+docs/bench/stream.md (Tried and not taken; their last full reports: git history: docs/bench/vad_memory.md,
+vad_memory_sweep.md).
 
     python -m tools.listen.sweep_vad_memory --out docs/bench/vad_memory_sweep.md
 """
