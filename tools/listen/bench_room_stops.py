@@ -65,6 +65,8 @@ class Outcome:
     stops_held: int = 0
     stop_s: list[float] | None = None
     false_actions: int = 0
+    #: holds for nothing that resumed the motion: each would have been a cancelled motion before the hold (issue 52)
+    resumed: int = 0
 
 
 def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
@@ -114,6 +116,7 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
                     held_t.setdefault(i, e["sent_t"])
                 moving = None
             elif state == "resumed":
+                out.resumed += pending_nothing is not None
                 moving, pending_nothing = e.get("action"), None
             elif state == "stayed" and pending_nothing is not None:
                 out.changed += 1
@@ -153,7 +156,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--model", default=str(SHARED / "models" / "faster-whisper-base"))
     p.add_argument("--work", type=Path, help="where recordings and logs go (default: a temp folder)")
     p.add_argument("--out", type=Path, help=f"write the report here (e.g. {DOC.relative_to(ROOT)})")
+    p.add_argument("--analyse", action="store_true", help="count again from the logs already in --work (no flight)")
     args = p.parse_args(argv)
+    if args.analyse and args.work is None:
+        p.error("--analyse needs --work FOLDER")
     feedbacks = args.feedback.split(",")
     if set(feedbacks) - {"speech", "tones", "off"}:
         p.error("--feedback: speech, tones or off")
@@ -171,10 +177,12 @@ def main(argv: list[str] | None = None) -> int:
     for room in rooms:
         x = speech if room is None else np.clip(speech + noise_track(noises, speech.size, room, rng), -1, 1)
         wav = work / f"room-{room or 'clean'}.wav"
-        write_wav(wav, x)
+        if not args.analyse:
+            write_wav(wav, x)
         for feedback in feedbacks:
             name = f"room-{room or 'clean'}-{feedback}"
-            out = count(fly(wav, work, name, args.model, feedback), placed, x.size / RATE / 60)
+            log = work / f"{name}.jsonl" if args.analyse else fly(wav, work, name, args.model, feedback)
+            out = count(log, placed, x.size / RATE / 60)
             rows.append((room, feedback, out))
             print(json.dumps({"room": room, "feedback": feedback, **{k: v for k, v in vars(out).items()
                                                                      if k != "stop_s"}}), flush=True)
@@ -194,16 +202,20 @@ def main(argv: list[str] | None = None) -> int:
         f"the bundled simulator; feedback speech and tones are mixed back into the recording {ECHO[0]:g} dB, "
         f"{ECHO[1] * 1000:.0f} ms late (`--feedback-echo`). Counts, and per 5 minutes in brackets.",
         "",
-        "| room | feedback | stops for nothing | of them changed the flight | motions cancelled | real stops held "
-        f"within {STOP_WITHIN_S * 1000:.0f} ms | p95 s | false actions on other speech |",
-        "|---|---|---|---|---|---|---|---|",
+        "Stops for nothing: the spotter fired where no stop was said. Changed the flight: a motion stopped and not "
+        "resumed by it. Resumed: a motion held for nothing and then resumed: before the hold (issue 52) each was a "
+        "motion cancelled.",
+        "",
+        "| room | feedback | stops for nothing | of them changed the flight | motions cancelled | resumed (cancelled "
+        f"before) | real stops held within {STOP_WITHIN_S * 1000:.0f} ms | p95 s | false actions on other speech |",
+        "|---|---|---|---|---|---|---|---|---|",
     ]
     for room, feedback, o in rows:
         lines.append(f"| {'clean' if room is None else f'{room:g} dB'} | {feedback} | {per5(o.spotted_nothing, o)} | "
-                     f"{per5(o.changed, o)} | {o.cancelled} | {o.stops_held}/{o.stops} | "
+                     f"{per5(o.changed, o)} | {o.cancelled} | {o.resumed} | {o.stops_held}/{o.stops} | "
                      f"{percentile(o.stop_s, 0.95):.2f} | {o.false_actions} |" if o.stop_s else
                      f"| {room} | {feedback} | {per5(o.spotted_nothing, o)} | {per5(o.changed, o)} | {o.cancelled} | "
-                     f"0/{o.stops} | - | {o.false_actions} |")
+                     f"{o.resumed} | 0/{o.stops} | - | {o.false_actions} |")
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:

@@ -280,12 +280,32 @@ def report(seed: int) -> str:
     return "\n".join(lines) + "\n"
 
 
+def timing(n: int = 40) -> str:
+    """What the ear adds to a decision: its own encoder pass and classifier, per held-out command (wall ms)."""
+    import time
+
+    from gcs_voice.asr.registry import load_recognizer
+    from tools.speech.ear_rows import DEFAULT_MODEL
+    from tools.speech.real_speech import load_recordings, read_wav
+
+    recognizer = load_recognizer("whisper", [load_language("en")], model=str(DEFAULT_MODEL), mode="score")
+    spent = []
+    for rec in [r for r in load_recordings(split="test") if r.kind == "command"][:n]:
+        audio = read_wav(rec.path)
+        started = time.perf_counter()
+        recognizer.hear(audio)
+        spent.append((time.perf_counter() - started) * 1000)
+    spent.sort()
+    return (f"The ear's time per utterance (its encoder pass on the utterance alone, and the classifier), {len(spent)} "
+            f"held-out commands: median {spent[len(spent) // 2]:.0f} ms, p95 {spent[int(0.95 * (len(spent) - 1))]:.0f} ms.")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m tools.speech.bench_ear", description=__doc__.splitlines()[0])
     sub = parser.add_subparsers(dest="stage", required=True)
     tun = sub.add_parser("tune", help="choose vouch and veto on the dev speakers")
     tun.add_argument("--write", action="store_true", help="write them into thresholds.toml")
-    rep = sub.add_parser("report", help="judge the held-out speakers; write docs/bench/ear.md")
+    rep = sub.add_parser("report", help="judge the held-out speakers (and time the ear); write docs/bench/ear.md")
     rep.add_argument("--out", type=Path, default=DOC)
     for p in (tun, rep):
         p.add_argument("--seed", type=int, default=SEED)
@@ -294,7 +314,7 @@ def main(argv: list[str] | None = None) -> int:
         return tune(args.seed, args.write)
     from tools.report import header
 
-    text = header("tools.speech.bench_ear", argv) + report(args.seed)
+    text = header("tools.speech.bench_ear", argv) + report(args.seed) + "\n" + timing() + "\n"
     print(text)
     args.out.write_text(text, encoding="utf-8")
     return 0
