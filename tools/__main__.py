@@ -26,7 +26,7 @@ COMMANDS: list[tuple[str, str, str]] = [
      "compares them with fresh ones", ""),
     ("speech.bench_real", "the voice front-end on real speakers, clean and in real noise: recognise, tune, report, "
      "frontier, guard, gate, second-ear, stays, spread, timing",
-     "docs/bench/real.md, real_spread.md, real_timing.md"),
+     "docs/bench/real.md, real_timing.md (spread: printed)"),
     ("speech.bench_accuracy", "recogniser + matcher accuracy on the synthetic corpus and the real voices, per noise: "
      "recognise, report, tune, paired", "docs/bench/accuracy.md"),
     ("speech.bench_spanish", "Spanish on synthetic speech, and the Spanish thresholds chosen on it",

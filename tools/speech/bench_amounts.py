@@ -154,8 +154,10 @@ def main(argv: list[str] | None = None) -> int:
     if wrongs:
         lines += ["Acted on wrongly:", "", "| said | voice | condition | done | Whisper heard |",
                   "| --- | --- | --- | --- | --- |", *wrongs, ""]
+    from tools.report import header
+
     args.out.parent.mkdir(parents=True, exist_ok=True)
-    args.out.write_text("\n".join(lines), encoding="utf-8")
+    args.out.write_text(header("tools.speech.bench_amounts", argv) + "\n".join(lines), encoding="utf-8")
     print("\n".join(lines))
     return 0
 

@@ -170,8 +170,10 @@ def main(argv: list[str] | None = None) -> int:
             return 2
         print(frontier())
         return 0
+    from tools.report import header
+
     DOC.parent.mkdir(parents=True, exist_ok=True)
-    DOC.write_text(report(args.engines.split(",")), encoding="utf-8")
+    DOC.write_text(header("tools.speech.bench_real", argv) + report(args.engines.split(",")), encoding="utf-8")
     print(f"wrote {DOC.relative_to(REPO)}")
     variants = variants_report()
     if variants is None:

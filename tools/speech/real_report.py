@@ -1,5 +1,5 @@
 """The report, variants and spread stages of ``python -m tools.speech.bench_real``: docs/bench/real.md,
-real_variants.md and real_spread.md from the recognitions of tools/speech/real_cache.py.
+the spread of the noise draws (printed) from the recognitions of tools/speech/real_cache.py.
 """
 
 from __future__ import annotations
@@ -93,7 +93,9 @@ def report(engines: list[str]) -> str:
                          f"{pct(c.ranked_first, c.commands)} | {p50:.0f} / {p95:.0f} ms |")
         lines += ["", "Decision time: from the end of the audio to the recognition, as recorded while the cache was made"
                   " (the machine was loaded by other work; `python -m tools.speech.bench_real timing` measures it idle).", "",
-                  "Settings tried and not taken, on the dev split: [real_variants.md](real_variants.md).", ""]
+                  "The domain ear (gcs_voice/asr/ear.py) was trained on the first half of each noise; these mixes draw "
+                  "their segment from the whole noise file. The figures on the unheard half only, and on noises the ear "
+                  "never heard: [ear.md](ear.md).", ""]
         if engine in TUNED:
             lines += [frontier(engine), "", guard(False, engine), "", gate(engine), ""]
     return "\n".join(lines) + "\n"
