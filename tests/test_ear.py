@@ -103,3 +103,11 @@ def test_the_ear_vetoes_an_action_it_heard_as_something_else():
 def test_the_ear_never_overrides_a_negation_or_a_lone_number():
     assert _decide(_scored("go left", "Don't go left.", 0.0, {"go_left": 0.99})).action is None
     assert _decide(_scored("go forward", "4", -0.5, {"go_forward": 0.99})).action is None
+
+
+def test_words_after_the_command_are_still_judged_when_the_ear_vouches():
+    """An amount Whisper lost ("Arriba, SMEpos." for "arriba trece metros") must not fly an open-ended climb."""
+    lost = _scored("arriba", "Arriba, SMEpos.", -0.2, {"up": 0.99}, "es")
+    decision = _decide(lost, ES)
+    assert decision.action is None and "smepos" in decision.reason.lower()
+    assert _decide(_scored("backward", "Paggles.", -2.0, {"go_back": 0.99})).action == "go_back"

@@ -279,8 +279,12 @@ class Matcher:
         second = next((w for w in heard_words if w not in words and w in commands), None)
         if second is not None:
             return f"two commands: heard '{recognition.transcript}', and '{second}' is a {commands[second]} command"
-        if not judge_words:  # the domain ear vouched for the class: a filler or a misspelt word is no reason
-            return ""
+        if not judge_words:
+            # The domain ear vouched for the class: words before the command's are forgiven (a filler, "y es
+            # izquierda"; a word Whisper misspelt alone, "Paggles"), the words after them are judged as ever (an amount
+            # it lost: "Arriba, SMEpos" for "arriba trece metros" is no open-ended climb).
+            while heard_words and distance(heard_words[0]) > limit:
+                heard_words = heard_words[1:]
         i, taken_alone = 0, False  # whether the word before was taken by itself, not as half of a pair
         while i < len(heard_words):
             word = heard_words[i]
