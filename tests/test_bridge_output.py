@@ -294,8 +294,11 @@ def test_a_loud_room_is_told_for_what_may_have_been_a_command_not_for_other_word
 
     en = load_language("en")
     bus = EventBus()
-    pipeline = listen.VoicePipeline(load_recognizer("whisper", [en], model=str(whisper_model_dir), mode="score"),
-                                    get_matcher(DEFAULT_MATCHER), [en], "en", bus, realtime=False)
+    recognizer = load_recognizer("whisper", [en], model=str(whisper_model_dir), mode="score")
+    # The hint's rule reads Whisper's margin alone. The domain ear hears this "left" rightly (it acts on it), so the
+    # rule is checked without the ear, on a command Whisper alone loses in the room.
+    recognizer.ear = None
+    pipeline = listen.VoicePipeline(recognizer, get_matcher(DEFAULT_MATCHER), [en], "en", bus, realtime=False)
     assert pipeline.loud_room_min_margin > -5.0, "the test's words sit either side of the shipped margin"
     for t, (folder, name) in enumerate((("go_left", "sc_left_2313e093_nohash_0.wav"),
                                         ("_none", "sc_tree_23059a35_nohash_3.wav"))):
