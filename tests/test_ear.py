@@ -111,3 +111,5 @@ def test_words_after_the_command_are_still_judged_when_the_ear_vouches():
     decision = _decide(lost, ES)
     assert decision.action is None and "smepos" in decision.reason.lower()
     assert _decide(_scored("backward", "Paggles.", -2.0, {"go_back": 0.99})).action == "go_back"
+    garbled = _decide(_scored("sube", "su app sm", -0.5, {"up": 0.91}, "es"), ES)  # "suba trece metros", lost
+    assert garbled.action is None, garbled

@@ -281,10 +281,13 @@ class Matcher:
             return f"two commands: heard '{recognition.transcript}', and '{second}' is a {commands[second]} command"
         if not judge_words:
             # The domain ear vouched for the class: words before the command's are forgiven (a filler, "y es
-            # izquierda"; a word Whisper misspelt alone, "Paggles"), the words after them are judged as ever (an amount
-            # it lost: "Arriba, SMEpos" for "arriba trece metros" is no open-ended climb).
-            while heard_words and distance(heard_words[0]) > limit:
-                heard_words = heard_words[1:]
+            # izquierda"; a lone word Whisper misspelt, "Paggles"), the words after them are judged as ever (an amount
+            # it lost: "Arriba, SMEpos" or "su app sm" for "suba trece metros" is no open-ended climb).
+            first = next((k for k, w in enumerate(heard_words) if distance(w) <= limit), None)
+            if first is not None:
+                heard_words = heard_words[first:]
+            elif len(heard_words) == 1:
+                heard_words = []  # the one word written, misspelt: what the ear vouched for
         i, taken_alone = 0, False  # whether the word before was taken by itself, not as half of a pair
         while i < len(heard_words):
             word = heard_words[i]
