@@ -113,3 +113,9 @@ def test_words_after_the_command_are_still_judged_when_the_ear_vouches():
     assert _decide(_scored("backward", "Paggles.", -2.0, {"go_back": 0.99})).action == "go_back"
     garbled = _decide(_scored("sube", "su app sm", -0.5, {"up": 0.91}, "es"), ES)  # "suba trece metros", lost
     assert garbled.action is None, garbled
+
+
+def test_the_ear_never_vetoes_a_stop():
+    """The demo's "hold", heard "fold", was vetoed when the ear gave it 2 %: stopping is always safe."""
+    heard = _scored("hold", "fold", -0.6, {"go_forward": 0.5, "stop": 0.001})
+    assert _decide(heard).action == "stop"

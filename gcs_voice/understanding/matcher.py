@@ -353,10 +353,12 @@ class Matcher:
         return top, replace(recognition, hypotheses=(chosen, *rest))
 
     def _ear_veto_reason(self, recognition: Recognition, best: Candidate) -> str:
-        """An action the domain ear gives less than ``veto`` is not taken: it heard something else."""
+        """An action the domain ear gives less than ``veto`` is not taken: it heard something else. Never a stop:
+        stopping is always safe, and a stop refused is the one mistake a pilot cannot afford."""
         ear = ear_evidence(recognition.extra)
         limit = ear_limits(recognition.engine, self.thresholds_path, recognition.lang).get("veto")
-        if not ear or limit is None or ear.get(best.phrase.action, 0.0) >= limit:
+        if (not ear or limit is None or best.phrase.action == ALWAYS_SAFE
+                or ear.get(best.phrase.action, 0.0) >= limit):
             return ""
         top = max(ear, key=ear.__getitem__)
         said = "other speech" if top == EAR_NONE else top
