@@ -17,7 +17,6 @@ from __future__ import annotations
 
 import hashlib
 import tomllib
-import zlib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -26,7 +25,7 @@ import numpy as np
 
 from gcs_voice.asr.ear import NONE
 from gcs_voice.domain.dictionary import load_language
-from tools.speech.real_speech import SHARED, Recording, active_power, load_recordings, read_wav
+from tools.speech.real_speech import SHARED, Recording, load_recordings, mix, read_wav
 
 __all__ = ["Clip", "trainable", "clip_audio", "features", "NOISES", "EVAL_CONDITIONS", "noise_half", "mix_half", "real_clips", "synthetic_plan",
            "UNSEEN_WORDS", "noise_plan", "speak", "condition_audio"]
@@ -177,17 +176,9 @@ def noise_half(name: str, half: str) -> np.ndarray:
 
 
 def mix_half(speech: np.ndarray, name: str, half: str, snr_db: float, key: str, seed: int) -> np.ndarray:
-    """``speech`` with a segment of one half of a noise at ``snr_db`` below its voiced power."""
-    noise = noise_half(name, half)
-    rng = np.random.default_rng([seed, zlib.crc32(key.encode())])
-    if noise.size <= speech.size + 1:
-        noise = np.tile(noise, speech.size // noise.size + 2)
-    off = int(rng.integers(0, noise.size - speech.size))
-    seg = noise[off: off + speech.size].astype(np.float64)
-    gain = np.sqrt(active_power(speech) / (np.mean(seg ** 2) + 1e-12) / 10 ** (snr_db / 10))
-    out = speech + gain * seg
-    peak = float(np.max(np.abs(out)))
-    return (out / peak * 0.99 if peak > 1.0 else out).astype(np.float32)
+    """``speech`` with a segment of one half of a noise at ``snr_db`` below its voiced power (tools.speech.real_speech's
+    mix, on that half only)."""
+    return mix(speech, noise_half(name, half), snr_db, key, seed)
 
 
 def condition_audio(clip: Clip, audio: np.ndarray, noise: str | None, snr_db: float | None, half: str,
