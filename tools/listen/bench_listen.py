@@ -40,7 +40,7 @@ import numpy as np
 
 from tools.flight.bench_latency import percentile
 from tools.listen.stream_score import KINDS
-from tools.listen.streams import NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
+from tools.listen.streams import owner as owner_of, NOISE_FILES, RATE, Placed, lay_clips, noise_track, read_wav, write_wav
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -110,10 +110,7 @@ def live(jsonl: Path, placed: list[Placed]) -> Live:
     t0 = next(e["audio_t0"] for e in events if e["kind"] == "session" and e.get("phase") == "listening")
 
     def owner(end_t: float) -> int | None:
-        """The utterance whose audio the segment that ended at end_t overlaps most (its end inside it)."""
-        s = end_t - t0
-        inside = [i for i, p in enumerate(placed) if p.start_s - 0.3 <= s <= p.end_s + 0.5]
-        return min(inside, key=lambda i: abs(placed[i].voiced_end_s - s)) if inside else None
+        return owner_of(placed, end_t - t0)
 
     result = Live({i: [] for i in range(len(placed))}, {}, 0, [], [])
     for e in events:

@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from tools.flight.bench_latency import percentile
-from tools.listen.streams import RATE, Placed, lay_clips, noise_track, write_wav
+from tools.listen.streams import owner as owner_of, RATE, Placed, lay_clips, noise_track, write_wav
 from tools.speech.ear_data import NOISES, noise_half
 from tools.speech.real_speech import SHARED, Recording, load_recordings
 
@@ -77,9 +77,7 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
     t0 = next(e["audio_t0"] for e in events if e["kind"] == "session" and e.get("phase") == "listening")
 
     def owner(t: float) -> int | None:
-        s = t - t0
-        inside = [i for i, p in enumerate(placed) if p.start_s - 0.3 <= s <= p.end_s + 0.5]
-        return min(inside, key=lambda i: abs(placed[i].voiced_end_s - s)) if inside else None
+        return owner_of(placed, t - t0)
 
     out = Outcome(minutes, stop_s=[])
     held_t: dict[int, float] = {}  # real stop utterance -> first time the vehicle was held for it
@@ -141,7 +139,7 @@ def fly(wav: Path, work: Path, name: str, model: str, feedback: str) -> Path:
     with BundledSim(autopilot="ardupilot", room="open_field", log_path=work / f"{name}-sim.log") as sim:
         run_session(SessionConfig(connection=sim.connection, lang="en", listen_wav=wav, takeoff_m=1.5, hold_s=1.0,
                                   headless=True, quiet=True, log_dir=work, log_name=name,
-                                  feedback="off" if feedback == "off" else feedback,
+                                  feedback=feedback,
                                   feedback_echo=ECHO if feedback != "off" else None),
                     voice=voice)
     return work / f"{name}.jsonl"
@@ -211,11 +209,10 @@ def main(argv: list[str] | None = None) -> int:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for room, feedback, o in rows:
+        p95 = f"{percentile(o.stop_s, 0.95):.2f}" if o.stop_s else "-"
         lines.append(f"| {'clean' if room is None else f'{room:g} dB'} | {feedback} | {per5(o.spotted_nothing, o)} | "
-                     f"{per5(o.changed, o)} | {o.cancelled} | {o.resumed} | {o.stops_held}/{o.stops} | "
-                     f"{percentile(o.stop_s, 0.95):.2f} | {o.false_actions} |" if o.stop_s else
-                     f"| {room} | {feedback} | {per5(o.spotted_nothing, o)} | {per5(o.changed, o)} | {o.cancelled} | "
-                     f"{o.resumed} | 0/{o.stops} | - | {o.false_actions} |")
+                     f"{per5(o.changed, o)} | {o.cancelled} | {o.resumed} | {o.stops_held}/{o.stops} | {p95} | "
+                     f"{o.false_actions} |")
     text = "\n".join(lines) + "\n"
     print(text)
     if args.out:

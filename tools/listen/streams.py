@@ -33,6 +33,14 @@ class Placed:
     voiced_end_s: float
 
 
+def owner(placed: list[Placed], s: float) -> int | None:
+    """The placed utterance that a moment ``s`` seconds into the stream belongs to (inside its audio, 0.3 s before
+    to 0.5 s after it; the nearest voiced end among several), or None: how a live session's events are matched to
+    what was said."""
+    inside = [i for i, p in enumerate(placed) if p.start_s - 0.3 <= s <= p.end_s + 0.5]
+    return min(inside, key=lambda i: abs(placed[i].voiced_end_s - s)) if inside else None
+
+
 def read_wav(path: Path) -> np.ndarray:
     with wave.open(str(path), "rb") as w:
         if w.getframerate() != RATE or w.getnchannels() != 1 or w.getsampwidth() != 2:

@@ -21,6 +21,7 @@ from pathlib import Path
 import numpy as np
 
 from gcs_voice.asr.base import Hypothesis, Recognition
+from tools.speech.real_cache import read_rows
 from tools.speech.real_speech import SHARED
 from tools.speech.ear_data import EVAL_CONDITIONS, Clip, clip_audio, condition_audio, features, real_clips
 
@@ -42,13 +43,7 @@ def decode_vector(text: str) -> np.ndarray:
 
 def load_rows(path: Path = ROWS) -> dict[str, dict]:
     """Cached rows by key ("<file>|<condition>")."""
-    out: dict[str, dict] = {}
-    if path.is_file():
-        for line in path.read_text(encoding="utf-8").splitlines():
-            if line.strip():
-                row = json.loads(line)
-                out[row["key"]] = row
-    return out
+    return read_rows(path)
 
 
 def recognition(row: dict, ear: dict[str, float] | None = None) -> Recognition:

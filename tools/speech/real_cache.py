@@ -45,8 +45,8 @@ def cache_path(engine: str) -> Path:
 _TAG = ""
 
 
-def load_cache(engine: str) -> dict[str, dict]:
-    path = cache_path(engine)
+def read_rows(path: Path) -> dict[str, dict]:
+    """A cache of JSON lines by their "key" (the last line of a key wins); {} when there is none."""
     out: dict[str, dict] = {}
     if path.is_file():
         for line in path.read_text(encoding="utf-8").splitlines():
@@ -54,6 +54,10 @@ def load_cache(engine: str) -> dict[str, dict]:
                 row = json.loads(line)
                 out[row["key"]] = row
     return out
+
+
+def load_cache(engine: str) -> dict[str, dict]:
+    return read_rows(cache_path(engine))
 
 
 def recognise_one(recognizer, audio: np.ndarray, lang: str = "en") -> tuple[Recognition, float]:
