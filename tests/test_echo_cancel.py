@@ -212,12 +212,13 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
     a silent room (a faint, lone sound, -70 dBFS) sounded like "stay" to the spotter, which normalises the level
     away: the vehicle stopped after 24 of 44 such answers in a 30-minute session (tools.listen.bench_feedback_echo).
     Here, through the live path (the session's canceller and its word on its own echo, as shipped): each answer is
-    one stretch the spotter hears over the bridge's voice, and at most one of ten stops the vehicle. Not none:
-    where the answer falls within the microphone's blocks, which the machine's load moves, still decides some
-    (asked for none, it failed 3 times in 23 runs, idle and beside four busy processes). Nor is this where the
-    rate is guarded: on this recording even session 23's settings (no comfort noise, the usual threshold) and a
-    canceller that learns nothing stay under two; the rate is measured by tools.listen.bench_echo --alignments and
-    tools.listen.bench_feedback_echo, and test_fewer_stops_... guards the own-echo gate."""
+    one stretch the spotter hears over the bridge's voice, and at most one of ten stops the vehicle. Where an
+    answer's first sample falls within the microphone's 32 ms blocks decides what the canceller leaves of it; each
+    answer is placed at its own point in a block (spread over the block, the same in every run), not where a
+    player thread happens to start: left to a thread, the machine's load chose the points and a busy CI machine
+    got 2 of 10. Nor is this where the rate is guarded: it is measured over random alignments by
+    tools.listen.bench_echo --alignments and tools.listen.bench_feedback_echo, and test_fewer_stops_... guards the
+    own-echo gate."""
     pytest.importorskip("pocketsphinx")
     from gcs_voice.asr.stop_spotter import load_stop_spotter
     from tools.speech.real_speech import load_recordings
@@ -253,17 +254,19 @@ def test_the_bridge_confirming_a_command_does_not_stop_the_vehicle(real_speech_d
             streams[-1].accept(pcm)
         return hear
 
+    block = 512  # the microphone's block, samples (gcs_voice.audio.sources.MICROPHONE_BLOCK_S)
+
     def chunks():
         pending = list(answer_at)
         for chunk in room.hear(paced_chunks(recording, on_start=room.start)):
             if pending and chunk.start_s >= pending[0]:
                 pending.pop(0)
-
-                def play() -> None:
-                    gate.hold(time.time(), len(cue) / 2 / SAMPLE_RATE)  # as Feedback does
-                    room.play(cue, started=lambda t: gate.record(t, cue))
-
-                threading.Thread(target=play, daemon=True).start()
+                # the answer's first sample in a block not yet captured, the k-th answer 163 k samples into it
+                phase = (163 * (len(answer_at) - len(pending))) % block
+                start_t = room.t0 + chunk.start_s + chunk.duration_s + phase / SAMPLE_RATE
+                gate.hold(start_t, len(cue) / 2 / SAMPLE_RATE)  # as Feedback does, before the sound starts
+                gate.record(start_t, cue)  # the player's ``started``: the canceller's reference
+                room.play_at(cue, start_t)
             yield chunk
 
     clean = PlayedEcho(gate, EchoCanceller(**settings.echo_cancel))

@@ -183,15 +183,20 @@ class EchoRoom:
         now = time.time()
         if started is not None:
             started(now)
+        self.play_at(pcm, now)
+        time.sleep(max(0.0, now + pcm_seconds(pcm) - time.time()))  # a speaker takes the sound's length
+
+    def play_at(self, pcm: bytes, start_t: float) -> None:
+        """The sound leaves the speaker at UNIX time ``start_t`` (not yet heard), without waiting for it: a test
+        places it exactly within the microphone's blocks, where a thread's start would leave it to the load."""
         samples = np.frombuffer(pcm, "<i2").astype(np.float32) * self.gain
         if self.response is not None:
             samples = np.convolve(samples, self.response).astype(np.float32)
         with self._lock:
             if self.t0 is not None:
-                at = round((now + self.delay_s - self.t0) * SAMPLE_RATE)
+                at = round((start_t + self.delay_s - self.t0) * SAMPLE_RATE)
                 self._pending.append((at, samples))
-                self.played.append((now, pcm_seconds(pcm)))
-        time.sleep(max(0.0, now + pcm_seconds(pcm) - time.time()))  # a speaker takes the sound's length
+                self.played.append((start_t, pcm_seconds(pcm)))
 
     def hear(self, chunks: Iterable[AudioChunk]) -> Iterator[AudioChunk]:
         """The chunks as the microphone hears them: the recording plus whatever was played into the room."""
