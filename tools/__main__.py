@@ -40,7 +40,8 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("speech.bench_asr_speed", "speed (and command accuracy) of the three recognisers on this machine",
      ""),
     ("speech.train_ear", "trains the domain ear (a classifier over Whisper base's encoder) from the dev speakers, "
-     "synthetic voices and noise halves; --tiny: CI's check that the recipe learns", ""),
+     "synthetic voices and noise halves, and the over-voice ear (also the bridge's own cues as the echo canceller "
+     "leaves them); --tiny: CI's check that the recipe learns", ""),
     ("speech.ear_rows", "Whisper's recognitions and the ear's features of the real recordings, cached for "
      "bench_ear", ""),
     ("speech.bench_ear", "the domain ear on held-out speakers, each noise's unheard half and noises it never heard; "
@@ -51,6 +52,9 @@ COMMANDS: list[tuple[str, str, str]] = [
      "decided offline", "docs/bench/listen.md"),
     ("listen.bench_echo", "a stop said over the bridge's own voice: how often the stop spotter still hears it",
      "docs/bench/echo.md, echo_direct.md, echo_bilingual.md"),
+    ("listen.bench_settle", "a stop spotted over the bridge's voice, settled by the over-voice ear: real stops "
+     "kept, the canceller's remains of the bridge's cues let go; --split dev: chooses the ear's cue weight",
+     "docs/bench/settle.md"),
     ("listen.bench_feedback_echo", "a long session with the bridge's own speech mixed back into the microphone",
      "docs/bench/feedback_echo.md"),
     ("listen.bench_stop_spotter", "the stop spotter on real speech: hits, false alarms, decoding time",

@@ -13,7 +13,10 @@ vetoes an action it is sure was something else (``[ear.whisper-score]`` in thres
 to a dictionary without retraining still works through scoring.
 
 The weights ship in ``ear_model.npz`` beside this module, made by ``python -m tools.speech.train_ear``
-from the dev speakers of ../shared/speech, synthetic voices and one half of each real noise.
+from the dev speakers of ../shared/speech, synthetic voices and one half of each real noise. A second set,
+``ear_over_voice.npz``, made by the same command, has also heard what the echo canceller leaves of the bridge's own
+cues: it settles a stop spotted while the bridge speaks (gcs_voice.session.listen.StopPath), where the first ear
+took the bridge's words for a stop.
 """
 
 from __future__ import annotations
@@ -26,10 +29,13 @@ import numpy as np
 
 from gcs_voice.asr.base import SAMPLE_RATE
 
-__all__ = ["EAR_PATH", "NONE", "DomainEar", "pool_frames", "ear_evidence", "EAR_PREFIX"]
+__all__ = ["EAR_PATH", "EAR_OVER_VOICE_PATH", "NONE", "DomainEar", "pool_frames", "ear_evidence", "EAR_PREFIX"]
 
 #: the shipped weights (tools/speech/train_ear.py writes them)
 EAR_PATH = Path(__file__).resolve().parent / "ear_model.npz"
+#: the ear that settles a stop spotted while the bridge speaks: the same recipe, and also what the echo canceller
+#: leaves of the bridge's own cues, alone ("none") and under a word said over them (tools/speech/ear_cues.py)
+EAR_OVER_VOICE_PATH = Path(__file__).resolve().parent / "ear_over_voice.npz"
 #: the class of everything that is not a command
 NONE = "none"
 #: Recognition.extra keys of the ear's posteriors: "ear:<class>"

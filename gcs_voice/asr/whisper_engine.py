@@ -71,14 +71,16 @@ class WhisperRecognizer:
         self._threadpools = ThreadpoolController()
         #: the domain ear (gcs_voice/asr/ear.py): scoring mode only, and only on the Whisper model it was trained on
         self.ear = self._load_ear(resolved) if mode == "score" and self.settings.get("ear", True) else None
+        #: the ear for what is heard over the bridge's own voice (None: ``hear(over_voice=True)`` uses ``ear``)
+        self.ear_over_voice = self._load_ear(resolved, over_voice=True) if self.ear is not None else None
 
     @staticmethod
-    def _load_ear(resolved: str):
+    def _load_ear(resolved: str, over_voice: bool = False):
         from pathlib import Path
 
-        from gcs_voice.asr.ear import DomainEar
+        from gcs_voice.asr.ear import EAR_OVER_VOICE_PATH, EAR_PATH, DomainEar
 
-        ear = DomainEar.load()
+        ear = DomainEar.load(EAR_OVER_VOICE_PATH if over_voice else EAR_PATH)
         if ear is None:
             return None
         trained_on = ear.meta.get("model_bin_size")
@@ -87,17 +89,19 @@ class WhisperRecognizer:
             return None  # another Whisper model: its encoder speaks another language than the ear learnt
         return ear
 
-    def hear(self, audio: np.ndarray) -> dict[str, float]:
+    def hear(self, audio: np.ndarray, over_voice: bool = False) -> dict[str, float]:
         """The domain ear's class probabilities for one utterance ({} without an ear): the utterance
-        encoded alone, not padded to a window (tens of milliseconds for a command)."""
-        if self.ear is None:
+        encoded alone, not padded to a window (tens of milliseconds for a command). ``over_voice``: heard while the
+        bridge spoke (what the echo canceller left of it), judged by the ear that learnt the bridge's voice."""
+        ear = (self.ear_over_voice or self.ear) if over_voice else self.ear
+        if ear is None:
             return {}
         from gcs_voice.asr.ear import encoder_input, pool_frames
 
         encoded = np.asarray(self.model.encode(encoder_input(audio, self.log_mel)))
-        if not self.ear.fits(encoded.shape[-1]):
+        if not ear.fits(encoded.shape[-1]):
             return {}
-        return self.ear.evidence(pool_frames(encoded))
+        return ear.evidence(pool_frames(encoded))
 
     def log_mel(self, audio: np.ndarray, window: int | None = None) -> np.ndarray:
         """Whisper's log-mel features of ``audio`` (zero-padded to ``window`` samples when given), with

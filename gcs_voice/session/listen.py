@@ -555,10 +555,11 @@ def _spotted_stop_min(recognizer: Any) -> float | None:
 
 
 def _ear_stop(recognizer: Any, pcm: bytes) -> float | None:
-    """The domain ear's probability of "stop" for 16 kHz int16 audio (None: it heard nothing to judge)."""
+    """The domain ear's probability of "stop" for 16 kHz int16 audio heard over the bridge's own voice (None: it
+    heard nothing to judge): the over-voice ear, which learnt what the echo canceller leaves of the bridge's cues."""
     import numpy as np
 
     audio = np.frombuffer(pcm, "<i2").astype(np.float32) / 32768.0
     if audio.size < 1600:
         return None
-    return recognizer.hear(audio).get("ear:stop")
+    return recognizer.hear(audio, over_voice=True).get("ear:stop")

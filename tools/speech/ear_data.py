@@ -10,13 +10,15 @@ The rules of issue 51, in one place:
 
 Real speech exists only for single English words; every other phrase of the dictionaries (multi-word, Spanish,
 "back", amounts, fillers before a command) is said by espeak-ng voices and Piper's joe voice
-(``synthetic_plan``).
+(``synthetic_plan``). What the echo canceller leaves of the bridge's own cues, alone and under a word said over
+them, comes from tools.speech.ear_cues (``cue_plan``, ``over_cue_plan``): half of the cues are kept to judge.
 """
 
 from __future__ import annotations
 
 import hashlib
 import tomllib
+import zlib
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass
 from pathlib import Path
@@ -28,7 +30,7 @@ from gcs_voice.domain.dictionary import load_language
 from tools.speech.real_speech import SHARED, Recording, load_recordings, mix, read_wav
 
 __all__ = ["Clip", "trainable", "clip_audio", "features", "NOISES", "EVAL_CONDITIONS", "noise_half", "mix_half", "real_clips", "synthetic_plan",
-           "UNSEEN_WORDS", "noise_plan", "speak", "condition_audio"]
+           "UNSEEN_WORDS", "noise_plan", "speak", "condition_audio", "cue_plan", "over_cue_plan"]
 
 PHRASES_PATH = Path(__file__).resolve().parent / "ear_phrases.toml"
 #: short name -> noise file stem in ../shared/noise
@@ -71,6 +73,8 @@ class Clip:
     word: str      # what was said (a real file's word, a synthetic text)
     path: Path | None = None
     voice: tuple[str, int, int] | None = None  # synthetic: (voice, words per minute, pitch)
+    #: said over the bridge's own voice: the cue's id (tools.speech.ear_cues); a clip of source "cue" is the cue alone
+    over: str | None = None
 
 
 def real_clips(recordings: Iterable[Recording] | None = None) -> list[Clip]:
@@ -137,6 +141,50 @@ def noise_plan(seed: int, count: int = 240) -> list[Clip]:
     return out
 
 
+def cue_plan(seed: int, split: str = "dev", takes: int = 4, langs: tuple[str, ...] = ("en", "es")) -> list[Clip]:
+    """The bridge's own cues of one half (tools.speech.ear_cues.cue_split) alone, as the echo canceller leaves them,
+    each in ``takes`` scenes: no command ("none"). ``seed`` draws the scenes (with each clip's key)."""
+    from tools.speech.ear_cues import bridge_cues, cue_split
+
+    return [Clip(f"cue/{cue.id}/{seed}/{take}", NONE, cue.lang, "cue", "cue", f"bridge-{cue.lang}", split, "",
+                 over=cue.id)
+            for cue in bridge_cues(langs) if cue_split(cue) == split for take in range(takes)]
+
+
+def over_cue_plan(pilots: Iterable[Clip], seed: int, split: str = "dev", takes: int = 1,
+                  langs: tuple[str, ...] = ("en", "es")) -> list[Clip]:
+    """Each of ``pilots`` said over one of the bridge's cues of one half (drawn with ``seed``), ``takes`` times:
+    the word it is (a stop said while the bridge speaks is still a stop)."""
+    from tools.speech.ear_cues import bridge_cues, cue_split
+
+    cues = [c for c in bridge_cues(langs) if cue_split(c) == split]
+    rng = np.random.default_rng([seed, 11])
+    out = []
+    for pilot in pilots:
+        for take in range(takes):
+            cue = cues[int(rng.integers(len(cues)))]
+            out.append(Clip(f"over/{cue.id}/{seed}/{take}/{pilot.key}", pilot.label, pilot.lang, "over_cue",
+                            pilot.source, pilot.speaker, pilot.split, pilot.word, pilot.path, pilot.voice, cue.id))
+    return out
+
+
+def _cue_audio(clip: Clip, seed: int) -> np.ndarray:
+    """A clip heard over the bridge's voice (tools.speech.ear_cues.heard_over_cue): its scene drawn from its key;
+    the canceller has heard other cues of the same half before it."""
+    from tools.speech.ear_cues import bridge_cues, cue_split, heard_over_cue, scene
+
+    cues = {c.id: c for c in bridge_cues()}
+    cue = cues[clip.over]
+    same_half = [c for c in cues.values() if cue_split(c) == cue_split(cue) and c != cue]
+    rng = np.random.default_rng([seed, zlib.crc32(clip.key.encode())])
+    earlier = [same_half[int(i)] for i in rng.choice(len(same_half), size=3, replace=False)]
+    pilot = None
+    if clip.source != "cue":
+        pilot = read_wav(clip.path) if clip.path is not None else speak(clip, seed)
+    half = "train" if clip.split == "dev" else "test"
+    return heard_over_cue(cue, scene(clip.key, seed), pilot, half, earlier)
+
+
 def _noise_audio(clip: Clip) -> np.ndarray:
     name, offset, seconds, level_db = clip.word.split(":")
     noise = noise_half(name, "train")
@@ -193,6 +241,8 @@ def clip_audio(clip: Clip, seed: int = 0) -> np.ndarray:
     """A clip's clean audio (a real file read, a synthetic one spoken)."""
     if clip.source == "noise":
         return _noise_audio(clip)
+    if clip.over is not None:
+        return _cue_audio(clip, seed)
     return read_wav(clip.path) if clip.path is not None else speak(clip, seed)
 
 
