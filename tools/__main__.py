@@ -51,7 +51,7 @@ COMMANDS: list[tuple[str, str, str]] = [
     ("listen.bench_listen", "a whole noisy flight heard through the live microphone path, and the same clips "
      "decided offline", "docs/bench/listen.md"),
     ("listen.bench_echo", "a stop said over the bridge's own voice: how often the stop spotter still hears it",
-     "docs/bench/echo.md, echo_direct.md, echo_bilingual.md"),
+     "docs/bench/echo.md, echo_bilingual.md"),
     ("listen.bench_settle", "a stop spotted over the bridge's voice, settled by the over-voice ear: real stops "
      "kept, the canceller's remains of the bridge's cues let go; --split dev: chooses the ear's cue weight",
      "docs/bench/settle.md"),
