@@ -85,3 +85,5 @@ def test_no_motion_is_cancelled_by_a_stop_for_nothing_in_a_noisy_room(tmp_path: 
     assert outcome.spotted_nothing >= 1, events      # the spotter did fire for nothing, as in the room
     assert outcome.cancelled == 0, events            # ... and no motion was cancelled by it
     assert outcome.stops_held == outcome.stops == 1, events  # the real stop stopped, within 300 ms of its end
+    stayed = [e for e in events if '"state": "stayed"' in e]  # a hold that stayed says what said stop
+    assert all("staying stopped" in e and ("ear gave" in e or "Whisper heard" in e) for e in stayed), stayed

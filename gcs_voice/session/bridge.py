@@ -77,6 +77,8 @@ class Request:
     decided_t: float | None = None
     done: threading.Event = field(default_factory=threading.Event)
     accepted: bool = False
+    #: why, for a STAY: what said stop ("Whisper heard 'stop'", "the domain ear gave stop 14 %"), logged with it
+    why: str = ""
 
 
 def status_of(state: VehicleState | None, action: str | None) -> dict[str, Any]:
@@ -366,7 +368,7 @@ class Bridge:
             return None
         elif request.action == STAY or not_flying:
             paused = self.mapper.forget_pause()
-            reason = not_flying or "what was heard was nearest a stop; staying stopped"
+            reason = not_flying or f"{request.why or 'what was heard was nearest a stop'}; staying stopped"
             self.bus.emit("paused", f"{paused} not resumed: {reason}", state="stayed", action=paused, reason=reason,
                           utterance_end_t=request.utterance_end_t, sent_t=time.time())
             return None

@@ -149,7 +149,10 @@ class StopPath:
                       f"{'taken as a stop' if stay else 'no stop'} (domain ear: stop {p if p is not None else float('nan'):.0%})",
                       stay=stay, ear_stop=p, utterance_end_t=end_t)
         now = time.time()
-        bridge.submit(Request(STAY if stay else RESUME, "spotter", None, end_t if end_t is not None else now, now))
+        why = (f"the stop heard over the bridge's voice: the over-voice ear gave stop {p:.0%}" if p is not None
+               else "the stop heard over the bridge's voice: no ear to settle it")
+        bridge.submit(Request(STAY if stay else RESUME, "spotter", None, end_t if end_t is not None else now, now,
+                              why=why))
 
     def take_hold(self) -> bool:
         """Whether a provisional hold waits for a decision; the decision at hand settles it."""
@@ -277,12 +280,17 @@ class VoicePipeline:
         spotted = self.stop_path is not None and not more_waiting and self.stop_path.take_hold()
         if not (self.pause_while_deciding or spotted) or decision.accepted or more_waiting:
             return
-        near_stop = "stop" in (self._class_of(words) for words in self.last_heard_words)
+        said = next((words for words in self.last_heard_words if self._class_of(words) == "stop"), None)
+        near_stop = said is not None
+        why = f"Whisper heard '{said}'" if said is not None else ""
         if spotted and not near_stop:
             # the stop spotter held the vehicle: it stays stopped unless the domain ear is sure it was no stop
             near_stop = (self.last_ear_stop is None or self.spotted_stop_min is None
                          or self.last_ear_stop >= self.spotted_stop_min)
-        bridge.submit(Request(STAY if near_stop else RESUME, "voice", decision, self.last_end_t, time.time()))
+            why = (f"the stop spotter heard a stop and the domain ear gave it {self.last_ear_stop:.0%}"
+                   if self.last_ear_stop is not None else "the stop spotter heard a stop")
+        bridge.submit(Request(STAY if near_stop else RESUME, "voice", decision, self.last_end_t, time.time(),
+                              why=why))
 
     def _class_of(self, words: str) -> str | None:
         """The action class of a dictionary phrase that is exactly these words (normalised), or None."""
