@@ -52,11 +52,12 @@ def cue_split(cue: BridgeCue) -> str:
     return "dev" if int(hashlib.sha1(f"ear-cue:{cue.id}".encode()).hexdigest(), 16) % 2 == 0 else "test"
 
 
-def bridge_cues(langs: tuple[str, ...] = ("en", "es")) -> list[BridgeCue]:
-    """Every cue the bridge can play in ``langs``, once each."""
+@lru_cache(maxsize=None)
+def bridge_cues(langs: tuple[str, ...] = ("en", "es")) -> tuple[BridgeCue, ...]:
+    """Every cue the bridge can play in ``langs``, once each (read once: every clip over a cue asks)."""
     from tools.listen.bench_echo import every_cue
 
-    return list(dict.fromkeys(BridgeCue(lang, t, w) for lang in langs for t, w in every_cue(lang)))
+    return tuple(dict.fromkeys(BridgeCue(lang, t, w) for lang in langs for t, w in every_cue(lang)))
 
 
 @dataclass(frozen=True)
@@ -105,12 +106,6 @@ def render_cue(cue: BridgeCue) -> np.ndarray:
     return np.frombuffer(_rendered(cue.lang, cue.tone, cue.words), "<i2").astype(np.float64)
 
 
-def _voiced_dbfs(x: np.ndarray) -> float:
-    from tools.listen.bench_echo import voiced_dbfs
-
-    return voiced_dbfs(x)
-
-
 def heard_over_cue(cue: BridgeCue, where: Scene, pilot: np.ndarray | None, half: str,
                    earlier: list[BridgeCue] = ()) -> np.ndarray:
     """What the stop path hears over the bridge's voice (float samples in [-1, 1]): the microphone (the cue's echo
@@ -120,7 +115,7 @@ def heard_over_cue(cue: BridgeCue, where: Scene, pilot: np.ndarray | None, half:
     ``where.learned`` of them) in the same room, as a session some cues in."""
     from gcs_voice.audio.echo_cancel import EchoCanceller
     from gcs_voice.session.feedback import load_sound_settings
-    from tools.listen.bench_echo import room_response
+    from tools.listen.bench_echo import room_response, voiced_dbfs
     from tools.speech.ear_data import noise_half
 
     settings = load_sound_settings()
@@ -129,7 +124,7 @@ def heard_over_cue(cue: BridgeCue, where: Scene, pilot: np.ndarray | None, half:
     canceller = EchoCanceller(**settings.echo_cancel)
 
     def gain(x: np.ndarray) -> float:  # every cue of the session at the same loudness relative to the pilot
-        return 10 ** ((PILOT_DBFS + where.level_db - _voiced_dbfs(x)) / 20)
+        return 10 ** ((PILOT_DBFS + where.level_db - voiced_dbfs(x)) / 20)
 
     def hear(played: np.ndarray, extra: np.ndarray | None, at: int) -> np.ndarray:
         echo = np.convolve(played, response)
@@ -161,7 +156,7 @@ def heard_over_cue(cue: BridgeCue, where: Scene, pilot: np.ndarray | None, half:
     at = 0
     if pilot is not None:
         p = np.asarray(pilot, dtype=np.float64) * 32768.0
-        word = p * 10 ** ((PILOT_DBFS - _voiced_dbfs(p)) / 20)
+        word = p * 10 ** ((PILOT_DBFS - voiced_dbfs(p)) / 20)
         at = int(where.pilot_at * max(0, x.size - word.size // 2))  # begun while the bridge still speaks
     out = hear(x * gain(x), word, at)
     return np.clip(out / 32768.0, -1.0, 1.0).astype(np.float32)
