@@ -86,3 +86,49 @@ def test_a_stop_heard_again_over_the_bridge_voice_is_sent_once_and_a_later_one_a
     assert [bool(e.data.get("repeat")) for e in spotted] == [False, True, False], [e.msg for e in spotted]
     assert _spotter_stops(bus) == 2, [e.msg for e in bus.history]
     assert "already holding, not sent again" in spotted[1].msg
+
+
+def test_a_stop_spotted_while_a_paused_motion_waits_for_its_decision_only_holds_it(
+        tmp_path: Path, real_speech_dir: Path) -> None:
+    """The motion is paused while the utterance before is decided; the spotter then fires: the motion is held, not
+    cancelled, and goes on when the decision finds no stop (issue 52: this cancelled motions in the room)."""
+    require_parts("sim_bridge.cli")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.audio.sources import read_wav
+    from gcs_voice.session.bridge import PAUSE, RESUME
+    from tools.speech.real_speech import load_recordings
+
+    spotter = load_stop_spotter(["en"])
+    pcm = next(read_wav(r.path) for r in load_recordings(real_speech_dir, split="test")
+               if r.action == "stop" and spotter.spot(read_wav(r.path)).fired)
+    bus = EventBus()
+    with BundledSim(speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
+        link = VehicleLink(sim.connection, load_settings(), tlog_path=tmp_path / "s.tlog")
+        link.open()
+        try:
+            link.wait_vehicle(30)
+            link.request_telemetry()
+            bridge = Bridge(link, ActionMapper(link.settings), bus, 1.5)
+            runner = threading.Thread(target=bridge.run, daemon=True)
+            runner.start()
+            bridge.submit(Request("take_off", "script"))
+            assert bridge.flying_ready.wait(120), [e.msg for e in bus.history]
+            assert bridge.wait_idle(60)
+            assert bridge.submit(Request("go_forward", "key")).done.wait(10)
+            assert bridge.submit(Request(PAUSE, "voice")).done.wait(10)   # an utterance ended: being decided
+            assert bridge.mapper.paused == "go_forward"
+            path = StopPath(spotter, bus)
+            path.provisional = True            # as with a domain ear to settle it
+            path.feed(bridge, pcm)
+            path.end(bridge, time.time())
+            assert path.take_hold()            # a hold waits for the decision ...
+            assert bridge.mapper.paused == "go_forward", [e.msg for e in bus.history]
+            assert bridge.submit(Request(RESUME, "voice")).done.wait(10)  # ... which found no stop
+            assert bridge.mapper.action == "go_forward", [e.msg for e in bus.history]
+            bridge.finish()
+            runner.join(60)
+        finally:
+            link.close()
+    spotted = [e for e in bus.history if e.kind == "spotted"]
+    assert [bool(e.data.get("provisional")) for e in spotted] == [True], [e.msg for e in spotted]
+    assert _spotter_stops(bus) == 0, [e.msg for e in bus.history]

@@ -181,9 +181,11 @@ class StopPath:
                           over_voice=over_voice, repeat=True)
             return
         end = end_t if end_t is not None else now
-        if self.provisional and bridge.mapper.action in TRANSLATING_MOTIONS:
+        mapper = bridge.mapper
+        if self.provisional and (mapper.action in TRANSLATING_MOTIONS or mapper.paused in TRANSLATING_MOTIONS):
             # Held at once, as a stop would be; the decision of the utterance settles it: a stop, another command,
-            # or speech that was no stop (the motion goes on: a stop for nothing must not cancel it)
+            # or speech that was no stop (the motion goes on: a stop for nothing must not cancel it). A motion
+            # already paused while an utterance before is decided is held the same way, not cancelled.
             self.bus.emit("spotted", f"stop word {word!r} heard{where}{' (still speaking)' if during else ''}: "
                           "holding until it is decided", word=word, utterance_end_t=end_t, spotted_t=now,
                           over_voice=over_voice, provisional=True)

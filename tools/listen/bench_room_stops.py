@@ -82,6 +82,7 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
     out = Outcome(minutes, stop_s=[])
     held_t: dict[int, float] = {}  # real stop utterance -> first time the vehicle was held for it
     moving = None  # the motion flying now (from the log's commands, pauses and resumes)
+    paused = None  # the motion paused while an utterance is decided
     pending_nothing = None  # a provisional hold for nothing, waiting for its outcome: the motion it held
     for e in events:
         kind, origin = e["kind"], e.get("origin")
@@ -91,8 +92,8 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
             if not real:
                 out.spotted_nothing += 1
                 if e.get("provisional"):
-                    pending_nothing = moving
-                elif moving is not None:
+                    pending_nothing = moving or paused
+                elif moving is not None or paused is not None:
                     out.changed += 1
                     out.cancelled += 1
         if kind == "command":
@@ -103,7 +104,7 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
             if origin == "voice" and (i is None or placed[i].clip.action is None):
                 out.false_actions += 1
             moving = e["action"] if e["action"] in MOTIONS else None
-            pending_nothing = None
+            pending_nothing = paused = None
         if kind == "warning" and " -> stop" in e.get("msg", ""):  # a motion that ended by itself (the floor)
             moving = None
         if kind == "paused":
@@ -112,14 +113,15 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
                 i = owner(e.get("utterance_end_t") or e.get("sent_t") or 0.0)
                 if i is not None and placed[i].clip.action == "stop" and e.get("sent_t"):
                     held_t.setdefault(i, e["sent_t"])
-                moving = None
+                paused, moving = moving or paused, None
             elif state == "resumed":
                 out.resumed += pending_nothing is not None
-                moving, pending_nothing = e.get("action"), None
-            elif state == "stayed" and pending_nothing is not None:
-                out.changed += 1
-                out.cancelled += 1
-                pending_nothing = None
+                moving, pending_nothing, paused = e.get("action"), None, None
+            elif state == "stayed":
+                if pending_nothing is not None:
+                    out.changed += 1
+                    out.cancelled += 1
+                pending_nothing = paused = None
     stops = [i for i, p in enumerate(placed) if p.clip.action == "stop"]
     out.stops = len(stops)
     for i in stops:
