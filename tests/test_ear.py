@@ -87,7 +87,7 @@ def test_a_stop_said_over_the_bridge_is_kept_and_its_own_words_let_go(scorer, re
     from gcs_voice.session.listen import _ear_stop
 
     assert scorer.ear_over_voice is not None and scorer.ear_over_voice.meta["over_voice_examples"] > 0
-    keep_at = ear_limits("whisper-score")["spotted_stop"]
+    keep_at = ear_limits("whisper-score")["over_voice_stop"]
     cue = BridgeCue("en", "doing", "going left")
     assert cue_split(cue) == "test"
     stops = [r for r in load_recordings(split="test") if r.action == "stop"][:6]

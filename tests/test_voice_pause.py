@@ -40,7 +40,7 @@ def test_a_rejected_stop_stays_stopped_and_rejected_speech_resumes(whisper_model
         request = bridge._inbox.get_nowait()
         asked.setdefault(("stop" if rec.action == "stop" else rec.kind, request.action), rec.path.name)
         if request.action == STAY:  # the log says what said stop: Whisper's words
-            assert request.why.startswith("Whisper heard '"), request.why
+            assert request.why.startswith("Whisper"), request.why  # wrote, or ranked first
         if ("stop", STAY) in asked and ("sentence", RESUME) in asked:
             break
     assert ("stop", STAY) in asked and ("sentence", RESUME) in asked, asked

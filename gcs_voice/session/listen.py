@@ -96,7 +96,7 @@ class StopPath:
         #: the domain ear's probability of "stop" for some audio, and the least that keeps a hold stopped: settles a
         #: hold spotted over the bridge's own voice, which no decision follows (set with ``provisional``)
         self.ear_stop: Callable[[bytes], float | None] | None = None
-        self.spotted_stop_min = 0.0
+        self.over_voice_stop_min = 0.0
         self._pcm: list[bytes] = []
         self._stream: SpotStream | None = None
         self._fired = False
@@ -144,7 +144,7 @@ class StopPath:
         stopped, unless the ear is sure it was no stop."""
         self.holding = False
         p = self.ear_stop(pcm) if self.ear_stop is not None else None
-        stay = p is None or p >= self.spotted_stop_min
+        stay = p is None or p >= self.over_voice_stop_min
         self.bus.emit("settled", f"the stop heard over the bridge's voice was "
                       f"{'taken as a stop' if stay else 'no stop'} (domain ear: stop {p if p is not None else float('nan'):.0%})",
                       stay=stay, ear_stop=p, utterance_end_t=end_t)
@@ -233,11 +233,14 @@ class VoicePipeline:
         #: heard before the recogniser (None: no spotter, stops wait for the main decision like any word)
         self.stop_path = StopPath(stop_spotter, bus) if stop_spotter is not None else None
         #: a spotted stop is settled by the decision when the recogniser has a domain ear (gcs_voice/asr/ear.py):
-        #: the motion resumes after speech that was not understood only if the ear gives "stop" less than this
-        self.spotted_stop_min = _spotted_stop_min(recognizer)
+        #: the motion resumes after speech that was not understood only if the ear gives "stop" less than
+        #: ``spotted_stop``; Whisper's best phrase being a stop keeps it stopped if the ear gives ``nearest_stop``
+        limits = _ear_stop_limits(recognizer)
+        self.spotted_stop_min = limits.get("spotted_stop")
+        self.nearest_stop_min = limits.get("nearest_stop")
         if self.stop_path is not None and self.spotted_stop_min is not None:
             self.stop_path.provisional = True
-            self.stop_path.spotted_stop_min = self.spotted_stop_min
+            self.stop_path.over_voice_stop_min = limits.get("over_voice_stop", self.spotted_stop_min)
             self.stop_path.ear_stop = lambda pcm: _ear_stop(recognizer, pcm)
         #: the domain ear's probability of "stop" for the last utterance heard (None: no ear)
         self.last_ear_stop: float | None = None
@@ -272,19 +275,24 @@ class VoicePipeline:
 
     def settle_pause(self, bridge: Bridge, decision: Decision, more_waiting: bool = False) -> None:
         """After a rejected decision: resume the paused motion, or stay stopped if what was heard was nearest a
-        stop (the engine's words, or its best hypothesis, are a stop phrase: heard, but not surely enough to act
-        on; stopping is always safe). On the dev speakers of ../shared/speech (``python -m tools.speech.bench_real stays``)
-        this keeps both real stops Whisper rejected (kitchen noise, 12 dB), and stays stopped after 25 of the 364
-        other utterances it rejected, clean and in that noise (a false stop is a pause; the stop spotter fires
-        on far more: docs/bench/stop.md).
+        stop: Whisper wrote a stop phrase; or its best-scored phrase is one and the domain ear gives "stop" at least
+        ``nearest_stop``; or the stop spotter held it and the ear gives "stop" at least ``spotted_stop``. Heard, but
+        not surely enough to act on: stopping is safe, but a stop for nothing cancels the pilot's motion, so the
+        thresholds keep 98 % of the dev speakers' stops and no more (``python -m tools.speech.bench_ear tune``).
 
         Nothing while another utterance waits for its decision (its end paused the vehicle too)."""
         spotted = self.stop_path is not None and not more_waiting and self.stop_path.take_hold()
         if not (self.pause_while_deciding or spotted) or decision.accepted or more_waiting:
             return
-        said = next((words for words in self.last_heard_words if self._class_of(words) == "stop"), None)
-        near_stop = said is not None
-        why = f"Whisper heard '{said}'" if said is not None else ""
+        wrote, best = (self._class_of(words) == "stop" for words in self.last_heard_words or ("", ""))
+        p = self.last_ear_stop
+        near_stop, why = wrote, f"Whisper heard '{self.last_heard_words[0]}'" if wrote else ""
+        if best and not near_stop:
+            # Whisper's best-scored phrase is a stop (it ranks one first for many a short word in noise): stopped,
+            # unless the domain ear all but rules a stop out
+            near_stop = p is None or self.nearest_stop_min is None or p >= self.nearest_stop_min
+            why = f"Whisper's nearest phrase was '{self.last_heard_words[1]}'" + (
+                f" and the domain ear gave stop {p:.0%}" if p is not None else "")
         if spotted and not near_stop:
             # the stop spotter held the vehicle: it stays stopped unless the domain ear is sure it was no stop
             near_stop = (self.last_ear_stop is None or self.spotted_stop_min is None
@@ -556,12 +564,12 @@ def _is_user_error(exc: BaseException) -> bool:
     return isinstance(exc, GcsVoiceError)
 
 
-def _spotted_stop_min(recognizer: Any) -> float | None:
-    """The ear's "stop" probability under which a spotted stop resumes the motion after speech that was not
-    understood (``[ear.<engine>] spotted_stop``); None when the recogniser has no domain ear."""
+def _ear_stop_limits(recognizer: Any) -> dict[str, float]:
+    """The ear's "stop" probabilities that keep a held motion stopped after speech that was not understood
+    (``[ear.<engine>]`` spotted_stop, nearest_stop, over_voice_stop); empty when the recogniser has no domain ear."""
     if getattr(recognizer, "ear", None) is None:  # only Whisper in scoring mode has one
-        return None
-    return ear_limits(getattr(recognizer, "name", "")).get("spotted_stop")
+        return {}
+    return ear_limits(getattr(recognizer, "name", ""))
 
 
 def _ear_stop(recognizer: Any, pcm: bytes) -> float | None:

@@ -115,6 +115,9 @@ def count(jsonl: Path, placed: list[Placed], minutes: float) -> Outcome:
                     held_t.setdefault(i, e["sent_t"])
                 paused, moving = moving or paused, None
             elif state == "resumed":
+                i = owner(e.get("utterance_end_t") or e.get("sent_t") or 0.0)
+                if i is not None and placed[i].clip.action == "stop":
+                    held_t.pop(i, None)  # a real stop held and then let go: not a stop (unless a later one stops)
                 out.resumed += pending_nothing is not None
                 moving, pending_nothing, paused = e.get("action"), None, None
             elif state == "stayed":

@@ -2,7 +2,7 @@
 
 While the bridge speaks, only the stop spotter listens; a stop it spots holds a moving vehicle, and the over-voice
 ear settles the hold on the audio the spotter heard (gcs_voice.session.listen.StopPath): stopped if the ear gives
-"stop" at least ``[ear.whisper-score] spotted_stop`` (thresholds.toml), else the motion resumes. Two things count:
+"stop" at least ``[ear.whisper-score] over_voice_stop`` (thresholds.toml), else the motion resumes. Two things count:
 
 - what the echo canceller leaves of the bridge's cues, the pilot silent: a hold the ear keeps here is a stop for
   nothing. Held out (``--split test``): the half of the cues the ear never trained on (tools.speech.ear_cues), English
@@ -104,7 +104,7 @@ def main(argv: list[str] | None = None) -> int:
             parser.error(f"no ear at {missing[0]}")
     recognizer = load_recognizer("whisper", [load_language("en")], model=str(args.model), mode="score")
     spotter = load_stop_spotter(["en", "es"])
-    keep_at = ear_limits("whisper-score")["spotted_stop"]
+    keep_at = ear_limits("whisper-score")["over_voice_stop"]
     levels = [float(v) for v in args.levels.split(",")]
 
     def judge(audio: np.ndarray) -> tuple[bool, dict[str, float]]:
@@ -140,7 +140,7 @@ def main(argv: list[str] | None = None) -> int:
         f"{'second' if args.split == 'test' else 'first'} half of a real noise at -65 to -45 dBFS), through the "
         f"shipped echo canceller; and the {len(over[levels[0]])} real \"stop\" recordings of the {who} speakers of "
         "../shared/speech said over one of those cues at each level. The spotter at its threshold over the bridge's "
-        f"voice; a hold is kept when the ear gives \"stop\" at least {keep_at:g} (thresholds.toml `spotted_stop`).",
+        f"voice; a hold is kept when the ear gives \"stop\" at least {keep_at:g} (thresholds.toml `over_voice_stop`).",
         "",
         "| ear | the bridge alone: holds kept, of the spotter's stops | the bridge alone: kept, of all | "
         + " | ".join(f"real stop over the bridge at {lv:+g} dB: kept, of the spotter's" for lv in levels) + " |",

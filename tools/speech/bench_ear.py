@@ -39,10 +39,14 @@ VOUCH = (0.5, 0.7, 0.8, 0.9, 0.95, 0.98, 1.01)
 VETO = (0.0, 0.02, 0.05, 0.1)
 #: alone: probability of the ear's own class that puts that class first among Whisper's phrases (1.01 = never)
 ALONE = (0.95, 0.98, 0.995, 1.01)
-#: the fraction of the dev speakers' stops (every condition) a spotted stop must keep the vehicle stopped for, of those
-#: a hold can keep: all (a stop that resumes the motion is the one mistake a hold may not make) (decided a stop, or rejected and kept by the hold; one decided as another command is that command)
-STOP_KEPT = 1.0
+#: the fraction of the dev speakers' stops (every condition) a held motion must stay stopped for, of those a hold can
+#: keep (decided a stop, or rejected and kept by the hold; one decided as another command is that command): the
+#: issue's 95 % for real stops with a margin; all of them (1.0) kept the motion stopped after 28 % of the other
+#: utterances the spotter fired on, where 98 % keeps it after 10 % (issue 52)
+STOP_KEPT = 0.98
 SPOTTED_STOP = (0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.5)
+#: nearest_stop: the ear's "stop" that keeps a held motion stopped when Whisper's best-scored phrase is a stop
+NEAREST_STOP = (0.0, 0.01, 0.02, 0.05, 0.1)
 #: limit on dev: other speech acted on (a fraction, overall and clean); and no more wrong actions than without the ear
 DEV_OTHER = 0.01
 
@@ -176,21 +180,24 @@ def tune(seed: int, write: bool) -> int:
     print(f"chosen: vouch {vouch}, veto {veto}, alone {alone}: right {total(t, 'right')}, wrong {total(t, 'wrong')}, "
           f"other acted {total(t, 'other_acted')}")
     with tempfile.TemporaryDirectory() as tmp:
-        spotted = spotted_stop(rows, clips, ears, thresholds_with(vouch, veto, Path(tmp), alone))
+        spotted, nearest = spotted_stop(rows, clips, ears, thresholds_with(vouch, veto, Path(tmp), alone))
     if write:
         text = THRESHOLDS_PATH.read_text(encoding="utf-8")
-        for key, value in (("vouch", vouch), ("veto", veto), ("alone", alone), ("spotted_stop", spotted)):
+        chosen = (("vouch", vouch), ("veto", veto), ("alone", alone), ("spotted_stop", spotted),
+                  ("nearest_stop", nearest))
+        for key, value in chosen:
             text = re.sub(rf"(\[ear\.whisper-score\](?:\n[^\[].*)*?\n){key} = [^\n]*", rf"\g<1>{key} = {value}", text)
         THRESHOLDS_PATH.write_text(text, encoding="utf-8")
-        print(f"wrote vouch = {vouch}, veto = {veto}, alone = {alone}, spotted_stop = {spotted} into {THRESHOLDS_PATH}")
+        print(f"wrote {', '.join(f'{k} = {v}' for k, v in chosen)} into {THRESHOLDS_PATH}")
     return 0
 
 
-def spotted_stop(rows: dict[str, dict], clips: list[Clip], ears: list[DomainEar], thresholds: Path) -> float:
-    """The largest ``spotted_stop`` (the ear's "stop" probability a spotted hold stays stopped at) that keeps
-    STOP_KEPT of the dev speakers' real stops stopped that a hold can keep: decided a stop, or rejected and kept by
-    the hold (the ear, or the session's other rule: Whisper's words nearest a stop), among the utterances the stop
-    spotter fires on (only those are ever held); printed with what it costs."""
+def spotted_stop(rows: dict[str, dict], clips: list[Clip], ears: list[DomainEar],
+                 thresholds: Path) -> tuple[float, float]:
+    """``spotted_stop`` and ``nearest_stop`` (gcs_voice.session.listen.VoicePipeline.settle_pause): of the settings
+    that keep STOP_KEPT of the dev speakers' real stops stopped that a hold can keep (decided a stop, or rejected and
+    kept by the hold), the one that keeps the fewest other utterances stopped (on a tie the lower), among the
+    utterances the stop spotter fires on (only those are ever held); printed with what each costs."""
     matcher = get_matcher(DEFAULT_MATCHER, thresholds_path=thresholds)
     dictionary = load_language("en")
     stop_words = {p.match_key for p in dictionary.phrases if p.action == "stop"}
@@ -214,21 +221,26 @@ def spotted_stop(rows: dict[str, dict], clips: list[Clip], ears: list[DomainEar]
             decided_stops += clip.label == "stop" and action == "stop"
             if action is not None:
                 continue
-            words = {normalize_text(row["transcript"]), normalize_text(row["hypotheses"][0][0]) if row["hypotheses"] else ""}
-            rejected.append((clip.label == "stop", bool(words & stop_words), evidence["ear:stop"]))
+            best = normalize_text(row["hypotheses"][0][0]) if row["hypotheses"] else ""
+            rejected.append((clip.label == "stop", normalize_text(row["transcript"]) in stop_words,
+                             best in stop_words, evidence["ear:stop"]))
     stops = [r for r in rejected if r[0]]
-    chosen = 0.0
     print(f"dev utterances the spotter fires on: {all_stops} stops ({decided_stops} decided a stop, {len(stops)} "
           f"rejected), {len(rejected) - len(stops)} others rejected")
-    print("spotted_stop\treal stops rejected, kept stopped\tall stops stopped\tother rejected, kept stopped")
+    print("spotted_stop\tnearest_stop\treal stops rejected, kept stopped\tall stops stopped\tother rejected, kept stopped")
+    fit = []
     for t in SPOTTED_STOP:
-        kept = sum(near or p >= t for _, near, p in stops)
-        held = sum(near or p >= t for real, near, p in rejected if not real)
-        print(f"{t}\t{kept}/{len(stops)}\t{decided_stops + kept}/{all_stops}\t{held}/{len(rejected) - len(stops)}")
-        if decided_stops + kept >= STOP_KEPT * (decided_stops + len(stops)):
-            chosen = t
-    print(f"spotted_stop {chosen}")
-    return chosen
+        for t2 in NEAREST_STOP:
+            def stays(wrote: bool, best: bool, p: float) -> bool:
+                return wrote or (best and p >= t2) or p >= t
+            kept = sum(stays(*r[1:]) for r in stops)
+            held = sum(stays(*r[1:]) for r in rejected if not r[0])
+            print(f"{t}\t{t2}\t{kept}/{len(stops)}\t{decided_stops + kept}/{all_stops}\t{held}/{len(rejected) - len(stops)}")
+            if decided_stops + kept >= STOP_KEPT * (decided_stops + len(stops)):
+                fit.append((held, t, t2))
+    held, t, t2 = min(fit)
+    print(f"spotted_stop {t}, nearest_stop {t2}: other utterances kept stopped {held}")
+    return t, t2
 
 
 def _pcm(audio) -> bytes:
