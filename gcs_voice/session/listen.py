@@ -284,23 +284,15 @@ class VoicePipeline:
         spotted = self.stop_path is not None and not more_waiting and self.stop_path.take_hold()
         if not (self.pause_while_deciding or spotted) or decision.accepted or more_waiting:
             return
-        wrote, best = (self._class_of(words) == "stop" for words in self.last_heard_words or ("", ""))
+        written, best_phrase = self.last_heard_words or ("", "")
+        wrote, best = self._class_of(written) == "stop", self._class_of(best_phrase) == "stop"
         p = self.last_ear_stop
-        near_stop, why = wrote, f"Whisper heard '{self.last_heard_words[0]}'" if wrote else ""
-        if best and not near_stop:
-            # Whisper's best-scored phrase is a stop (it ranks one first for many a short word in noise): stopped,
-            # unless the domain ear all but rules a stop out
-            near_stop = p is None or self.nearest_stop_min is None or p >= self.nearest_stop_min
-            why = f"Whisper's nearest phrase was '{self.last_heard_words[1]}'" + (
-                f" and the domain ear gave stop {p:.0%}" if p is not None else "")
-        if spotted and not near_stop:
-            # the stop spotter held the vehicle: it stays stopped unless the domain ear is sure it was no stop
-            near_stop = (self.last_ear_stop is None or self.spotted_stop_min is None
-                         or self.last_ear_stop >= self.spotted_stop_min)
-            why = (f"the stop spotter heard a stop and the domain ear gave it {self.last_ear_stop:.0%}"
-                   if self.last_ear_stop is not None else "the stop spotter heard a stop")
+        near_stop = stays_stopped(wrote, best, p, spotted, self.spotted_stop_min, self.nearest_stop_min)
+        ear = f" and the domain ear gave stop {p:.0%}" if p is not None else ""
+        why = (f"Whisper heard '{written}'" if wrote else f"Whisper's nearest phrase was '{best_phrase}'{ear}" if best
+               else f"the stop spotter heard a stop{ear}")
         bridge.submit(Request(STAY if near_stop else RESUME, "voice", decision, self.last_end_t, time.time(),
-                              why=why))
+                              why=why if near_stop else ""))
 
     def _class_of(self, words: str) -> str | None:
         """The action class of a dictionary phrase that is exactly these words (normalised), or None."""
@@ -562,6 +554,19 @@ def _is_user_error(exc: BaseException) -> bool:
     from gcs_voice.errors import GcsVoiceError
 
     return isinstance(exc, GcsVoiceError)
+
+
+def stays_stopped(wrote: bool, best: bool, p_stop: float | None, spotted: bool, spotted_min: float | None,
+                  nearest_min: float | None) -> bool:
+    """Whether a motion held while an utterance was decided stays stopped after the decision rejected it: Whisper
+    wrote a stop phrase (``wrote``); or ranked one first (``best``: it does for many a short word in noise) and the
+    domain ear gives "stop" at least ``nearest_min``; or the stop spotter held it (``spotted``) and the ear gives
+    "stop" at least ``spotted_min``. Without an ear (``p_stop`` or a limit None) a stop heard at all stays."""
+    if wrote:
+        return True
+    if best and (p_stop is None or nearest_min is None or p_stop >= nearest_min):
+        return True
+    return spotted and (p_stop is None or spotted_min is None or p_stop >= spotted_min)
 
 
 def _ear_stop_limits(recognizer: Any) -> dict[str, float]:

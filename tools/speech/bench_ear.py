@@ -25,7 +25,7 @@ from gcs_voice.asr.ear import NONE, DomainEar
 from gcs_voice.domain.dictionary import load_language
 from gcs_voice.domain.text import normalize_text
 from gcs_voice.understanding import DEFAULT_MATCHER, get_matcher
-from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
+from gcs_voice.understanding.thresholds import THRESHOLDS_PATH, ear_limits
 from tools.speech.ear_data import EVAL_CONDITIONS, NOISES, UNSEEN_WORDS, Clip, clip_audio, condition_audio, real_clips
 from tools.speech.ear_rows import DEV_CONDITIONS, NOISE_SEED, decode_vector, half_of, load_rows, recognition
 from tools.speech.train_ear import SEED, Example, featurise, train, training_clips
@@ -192,51 +192,78 @@ def tune(seed: int, write: bool) -> int:
     return 0
 
 
+@dataclass
+class Holds:
+    """The utterances the stop spotter fires on (only those are ever held), and how their holds can settle."""
+
+    stops: int = 0          # real stops among them
+    decided_stops: int = 0  # ... that the decision took as a stop
+    #: those the decision rejected: (a real stop, Whisper wrote a stop phrase, its best phrase is one, ear p(stop))
+    rejected: list[tuple[bool, bool, bool, float]] = field(default_factory=list)
+
+    def kept(self, spotted: float, nearest: float) -> tuple[int, int]:
+        """Real stops and other utterances a held motion stays stopped for (VoicePipeline.settle_pause's rule)."""
+        from gcs_voice.session.listen import stays_stopped
+
+        def stays(wrote: bool, best: bool, p: float) -> bool:
+            return stays_stopped(wrote, best, p, True, spotted, nearest)
+        return (sum(stays(*r[1:]) for r in self.rejected if r[0]),
+                sum(stays(*r[1:]) for r in self.rejected if not r[0]))
+
+    def line(self, spotted: float, nearest: float) -> str:
+        stops, others = self.kept(spotted, nearest)
+        rejected_stops = sum(r[0] for r in self.rejected)
+        return (f"{stops}/{rejected_stops} | {self.decided_stops + stops}/{self.stops} | "
+                f"{others}/{len(self.rejected) - rejected_stops}")
+
+
+def holds(rows: dict[str, dict], clips: list[Clip], conditions: list[str], ear_of: Callable[[Clip], DomainEar],
+          thresholds: Path) -> Holds:
+    """What a hold could be settled on, for every clip the shipped stop spotter fires on in each condition."""
+    matcher = get_matcher(DEFAULT_MATCHER, thresholds_path=thresholds)
+    dictionary = load_language("en")
+    stop_words = {p.match_key for p in dictionary.phrases if p.action == "stop"}
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+
+    spotter = load_stop_spotter(["en"])
+    out = Holds()
+    for cond in conditions:
+        for clip in clips:
+            row = rows.get(f"{clip.key}|{cond}")
+            if row is None:
+                continue
+            evidence = ear_of(clip).evidence(decode_vector(row["features"]))
+            action = matcher.decide(recognition(row, evidence), [dictionary]).action
+            if not spotter.spot(_pcm(condition_audio(clip, clip_audio(clip), *EVAL_CONDITIONS[cond], half_of(clip),
+                                                     NOISE_SEED))).fired:
+                continue
+            out.stops += clip.label == "stop"
+            out.decided_stops += clip.label == "stop" and action == "stop"
+            if action is not None:
+                continue
+            best = normalize_text(row["hypotheses"][0][0]) if row["hypotheses"] else ""
+            out.rejected.append((clip.label == "stop", normalize_text(row["transcript"]) in stop_words,
+                                 best in stop_words, evidence["ear:stop"]))
+    return out
+
+
 def spotted_stop(rows: dict[str, dict], clips: list[Clip], ears: list[DomainEar],
                  thresholds: Path) -> tuple[float, float]:
     """``spotted_stop`` and ``nearest_stop`` (gcs_voice.session.listen.VoicePipeline.settle_pause): of the settings
     that keep STOP_KEPT of the dev speakers' real stops stopped that a hold can keep (decided a stop, or rejected and
     kept by the hold), the one that keeps the fewest other utterances stopped (on a tie the lower), among the
     utterances the stop spotter fires on (only those are ever held); printed with what each costs."""
-    matcher = get_matcher(DEFAULT_MATCHER, thresholds_path=thresholds)
-    dictionary = load_language("en")
-    stop_words = {p.match_key for p in dictionary.phrases if p.action == "stop"}
-    from gcs_voice.asr.stop_spotter import load_stop_spotter
-
-    spotter = load_stop_spotter(["en"])  # a hold is only ever asked where the spotter fired
-    rejected: list[tuple[bool, bool, float]] = []  # (a real stop, Whisper's words nearest a stop, ear p(stop))
-    decided_stops = all_stops = 0
-    for cond in DEV_CONDITIONS:
-        for clip in clips:
-            row = rows.get(f"{clip.key}|{cond}")
-            if row is None:
-                continue
-            ear = ears[fold_of(clip)]
-            evidence = ear.evidence(decode_vector(row["features"]))
-            action = matcher.decide(recognition(row, evidence), [dictionary]).action
-            if not spotter.spot(_pcm(condition_audio(clip, clip_audio(clip), *EVAL_CONDITIONS[cond], half_of(clip),
-                                                     NOISE_SEED))).fired:
-                continue
-            all_stops += clip.label == "stop"
-            decided_stops += clip.label == "stop" and action == "stop"
-            if action is not None:
-                continue
-            best = normalize_text(row["hypotheses"][0][0]) if row["hypotheses"] else ""
-            rejected.append((clip.label == "stop", normalize_text(row["transcript"]) in stop_words,
-                             best in stop_words, evidence["ear:stop"]))
-    stops = [r for r in rejected if r[0]]
-    print(f"dev utterances the spotter fires on: {all_stops} stops ({decided_stops} decided a stop, {len(stops)} "
-          f"rejected), {len(rejected) - len(stops)} others rejected")
-    print("spotted_stop\tnearest_stop\treal stops rejected, kept stopped\tall stops stopped\tother rejected, kept stopped")
+    found = holds(rows, clips, list(DEV_CONDITIONS), lambda c: ears[fold_of(c)], thresholds)
+    rejected_stops = sum(r[0] for r in found.rejected)
+    print(f"dev utterances the spotter fires on: {found.stops} stops ({found.decided_stops} decided a stop, "
+          f"{rejected_stops} rejected), {len(found.rejected) - rejected_stops} others rejected")
+    print("spotted_stop | nearest_stop | real stops rejected, kept stopped | all stops stopped | other rejected, kept stopped")
     fit = []
     for t in SPOTTED_STOP:
         for t2 in NEAREST_STOP:
-            def stays(wrote: bool, best: bool, p: float) -> bool:
-                return wrote or (best and p >= t2) or p >= t
-            kept = sum(stays(*r[1:]) for r in stops)
-            held = sum(stays(*r[1:]) for r in rejected if not r[0])
-            print(f"{t}\t{t2}\t{kept}/{len(stops)}\t{decided_stops + kept}/{all_stops}\t{held}/{len(rejected) - len(stops)}")
-            if decided_stops + kept >= STOP_KEPT * (decided_stops + len(stops)):
+            print(f"{t} | {t2} | {found.line(t, t2)}")
+            kept, held = found.kept(t, t2)
+            if found.decided_stops + kept >= STOP_KEPT * (found.decided_stops + rejected_stops):
                 fit.append((held, t, t2))
     held, t, t2 = min(fit)
     print(f"spotted_stop {t}, nearest_stop {t2}: other utterances kept stopped {held}")
@@ -289,6 +316,20 @@ def report(seed: int) -> str:
     for cond in conditions:
         if with_ear[cond].wrongs:
             lines.append(f"- {cond}: " + "; ".join(with_ear[cond].wrongs))
+    limits = ear_limits("whisper-score")
+    found = holds(rows, clips, conditions, lambda c: shipped, THRESHOLDS_PATH)
+    lines += [
+        "", "## A motion held by the stop spotter, after speech that was not understood", "",
+        f"Every held-out utterance above that the shipped stop spotter fires on ({found.stops} real stops among them, "
+        f"{found.decided_stops} decided a stop). Of those the decision rejected, the held motion stays stopped when "
+        "Whisper wrote a stop, or ranked a stop first and the ear gives \"stop\" at least `nearest_stop`, or the ear "
+        "gives it at least `spotted_stop` (gcs_voice.session.listen.VoicePipeline.settle_pause).", "",
+        "| spotted_stop | nearest_stop | real stops rejected, kept stopped | all real stops stopped | "
+        "other speech rejected, kept stopped |", "|---|---|---|---|---|",
+        f"| {limits['spotted_stop']:g} | {limits['nearest_stop']:g} (shipped) | "
+        f"{found.line(limits['spotted_stop'], limits['nearest_stop'])} |",
+        f"| 0.02 | 0 (keeps every dev stop) | {found.line(0.02, 0.0)} |",
+    ]
     return "\n".join(lines) + "\n"
 
 
