@@ -14,10 +14,13 @@ The spotter is the shipped one at its threshold over the bridge's voice, on the 
 
     python -m tools.listen.bench_settle --out docs/bench/settle.md          # the shipped ears, held out
     python -m tools.listen.bench_settle --split dev --cue-weights 5,20,50,100,200,500   # choose CUE_WEIGHT
+    python -m tools.listen.bench_settle --split dev --choose [--write]   # choose over_voice_stop
 
 ``--split dev`` judges over-voice ears trained (from train_ear's cached features) with each ``--cue-weights`` on new
 scenes of the trained cues and the dev speakers' stops, over the first halves: train_ear.CUE_WEIGHT is the one that
-keeps every dev stop's hold and lets go of most cues (the smallest among equals).
+keeps every dev stop's hold and lets go of most cues (the smallest among equals). ``--choose`` judges each dev stop
+with an over-voice ear trained without its speaker (5 folds, as tools.speech.bench_ear tune): ``over_voice_stop`` is
+the largest that keeps STOP_KEPT of the dev stops the spotter fires on (tools.speech.bench_ear.STOP_KEPT).
 """
 
 from __future__ import annotations
@@ -35,6 +38,8 @@ from tools.speech.real_speech import SHARED
 DEFAULT_MODEL = SHARED / "models" / "faster-whisper-base"
 #: the scenes' seed (the ears train on seed 1's: these are others, even of the same cues)
 SEED = 7
+#: the over_voice_stop values ``--choose`` tries
+OVER_VOICE_STOP = (0.02, 0.05, 0.1, 0.15, 0.2, 0.3, 0.5)
 
 
 def scenes(split: str, takes: int, levels: list[float], judge) -> tuple[list, dict[float, list]]:
@@ -44,7 +49,7 @@ def scenes(split: str, takes: int, levels: list[float], judge) -> tuple[list, di
     from tools.speech.ear_data import clip_audio, cue_plan, real_clips
 
     t0 = time.time()
-    alone = [(clip.over, judge(clip_audio(clip, SEED))) for clip in cue_plan(SEED, split=split, takes=takes)]
+    alone = [(clip.over, judge(clip_audio(clip, SEED), clip)) for clip in cue_plan(SEED, split=split, takes=takes)]
     print(f"  {len(alone)} cues alone ({time.time() - t0:.0f} s)", file=sys.stderr)
     cues = [c for c in bridge_cues() if cue_split(c) == split]
     stops = [c for c in real_clips() if c.split == split and c.label == "stop"]
@@ -56,7 +61,7 @@ def scenes(split: str, takes: int, levels: list[float], judge) -> tuple[list, di
             cue = cues[int(rng.integers(len(cues)))]
             where = replace(scene(f"bench/{level}/{clip.key}", SEED), level_db=level)
             earlier = [cues[int(i)] for i in rng.choice(len(cues), size=3, replace=False)]
-            over.setdefault(level, []).append(judge(heard_over_cue(cue, where, clip_audio(clip), half, earlier)))
+            over.setdefault(level, []).append(judge(heard_over_cue(cue, where, clip_audio(clip), half, earlier), clip))
         print(f"  stops over cues at {level:+g} dB ({time.time() - t0:.0f} s)", file=sys.stderr)
     return alone, over
 
@@ -76,6 +81,8 @@ def main(argv: list[str] | None = None) -> int:
                         help=f"an ear to judge, repeatable (default: {EAR_OVER_VOICE_PATH.name} and {EAR_PATH.name})")
     parser.add_argument("--split", choices=("test", "dev"), default="test")
     parser.add_argument("--cue-weights", default="", help="with --split dev: CUE_WEIGHT values to train and compare")
+    parser.add_argument("--choose", action="store_true", help="with --split dev: choose over_voice_stop (out-of-fold)")
+    parser.add_argument("--write", action="store_true", help="with --choose: write it into thresholds.toml")
     parser.add_argument("--takes", type=int, default=6, help="scenes per cue alone")
     parser.add_argument("--levels", default="-10,-6,0,6", help="the bridge's voice relative to the pilot's, dB")
     parser.add_argument("--model", type=Path, default=DEFAULT_MODEL)
@@ -83,9 +90,23 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not (args.model / "model.bin").is_file():
         parser.error(f"no Whisper model at {args.model} (give --model PATH/faster-whisper-base)")
-    if args.split == "dev" and not args.cue_weights:
-        parser.error("--split dev compares --cue-weights (the held-out split judges the shipped ears)")
-    if args.cue_weights:
+    if args.split == "dev" and not (args.cue_weights or args.choose):
+        parser.error("--split dev compares --cue-weights or does --choose (the held-out split judges the shipped ears)")
+    if args.choose and (args.split != "dev" or args.cue_weights):
+        parser.error("--choose is on --split dev, without --cue-weights")
+    fold_ears: list = []
+    if args.choose:
+        from tools.speech.bench_ear import FOLDS, fold_of
+
+        clips = train_ear.training_clips(train_ear.SEED, False)
+        examples = (train_ear.featurise(clips, train_ear.SEED, False, args.model)
+                    + train_ear.featurise(train_ear.over_voice_clips(clips, train_ear.SEED, False), train_ear.SEED,
+                                          False, args.model))
+        classes = train_ear.classes_of(examples)
+        fold_ears = [train_ear.train([e for e in examples if e.clip.source != "real" or fold_of(e.clip) != k],
+                                     train_ear.SEED, classes)[0] for k in range(FOLDS)]
+        ears = {"over-voice ear, out of fold": fold_ears[0]}
+    elif args.cue_weights:
         if args.split != "dev":
             parser.error("--cue-weights are chosen on --split dev only")
         clips = train_ear.training_clips(train_ear.SEED, False)
@@ -107,14 +128,20 @@ def main(argv: list[str] | None = None) -> int:
     keep_at = ear_limits("whisper-score")["over_voice_stop"]
     levels = [float(v) for v in args.levels.split(",")]
 
-    def judge(audio: np.ndarray) -> tuple[bool, dict[str, float]]:
-        """(whether the spotter fires over the bridge's voice, each ear's p(stop))."""
+    def judge(audio: np.ndarray, clip) -> tuple[bool, dict[str, float]]:
+        """(whether the spotter fires over the bridge's voice, each ear's p(stop)); --choose: the ear of the
+        speaker's fold."""
         pcm = np.clip(np.round(audio * 32768.0), -32768, 32767).astype("<i2").tobytes()
         fired = spotter.spot(pcm, over_voice=True).fired
         x = features(recognizer.model.encode, recognizer.log_mel, audio)
+        if fold_ears:
+            ear = fold_ears[fold_of(clip)] if clip.source == "real" else fold_ears[0]
+            return fired, {name: float(ear.evidence(x)["ear:stop"]) for name in ears}
         return fired, {name: float(ear.evidence(x)["ear:stop"]) for name, ear in ears.items()}
 
     alone, over = scenes(args.split, args.takes, levels, judge)
+    if args.choose:
+        return choose(alone, over, next(iter(ears)), args.write)
     named = {str(EAR_OVER_VOICE_PATH): "over-voice ear (shipped)", str(EAR_PATH): "the commands' ear (shipped)"}
     rows = []
     for name in ears:
@@ -154,6 +181,32 @@ def main(argv: list[str] | None = None) -> int:
         args.out.parent.mkdir(parents=True, exist_ok=True)
         args.out.write_text(report, encoding="utf-8")
         print(f"wrote {args.out}")
+    return 0
+
+
+def choose(alone: list, over: dict[float, list], name: str, write: bool) -> int:
+    """The largest OVER_VOICE_STOP that keeps STOP_KEPT of the dev stops the spotter fired on over the bridge."""
+    import re
+
+    from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
+    from tools.speech.bench_ear import STOP_KEPT
+
+    stops = [p[name] for level in over for fired, p in over[level] if fired]
+    cues = [p[name] for _c, (fired, p) in alone if fired]
+    print("over_voice_stop | dev stops over the bridge kept (of the spotter's) | cues alone kept (of the spotter's)")
+    chosen = OVER_VOICE_STOP[0]
+    for t in OVER_VOICE_STOP:
+        kept = sum(p >= t for p in stops)
+        print(f"{t} | {kept}/{len(stops)} | {sum(p >= t for p in cues)}/{len(cues)}")
+        if kept >= STOP_KEPT * len(stops):
+            chosen = t
+    print(f"over_voice_stop {chosen}")
+    if write:
+        text = THRESHOLDS_PATH.read_text(encoding="utf-8")
+        text = re.sub(r"(\[ear\.whisper-score\](?:\n[^\[].*)*?\n)over_voice_stop = [^\n]*",
+                      rf"\g<1>over_voice_stop = {chosen}", text)
+        THRESHOLDS_PATH.write_text(text, encoding="utf-8")
+        print(f"wrote over_voice_stop = {chosen} into {THRESHOLDS_PATH}")
     return 0
 
 
