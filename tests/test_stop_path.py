@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import threading
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 import pytest
@@ -41,18 +43,9 @@ def _wait_stops(bus: EventBus, n: int) -> None:
     assert done.wait(30), [e.msg for e in bus.history]
 
 
-def test_a_stop_heard_again_over_the_bridge_voice_is_sent_once_and_a_later_one_again(
-        tmp_path: Path, real_speech_dir: Path) -> None:
-    require_parts("sim_bridge.cli")
-    from gcs_voice.asr.stop_spotter import load_stop_spotter
-    from gcs_voice.audio.sources import read_wav
-    from tools.speech.real_speech import load_recordings
-
-    spotter = load_stop_spotter(["en"])
-    pcm = next(read_wav(r.path) for r in load_recordings(real_speech_dir, split="test")
-               if r.action == "stop" and spotter.spot(read_wav(r.path)).fired
-               and spotter.spot(read_wav(r.path), over_voice=True).fired)
-    bus = EventBus()
+@contextmanager
+def _flying_forward(tmp_path: Path, bus: EventBus) -> Iterator[Bridge]:
+    """A bridge flying the bundled simulator on 127.0.0.1, taken off and going forward; finished on leaving."""
     with BundledSim(speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
         link = VehicleLink(sim.connection, load_settings(), tlog_path=tmp_path / "s.tlog")
         link.open()
@@ -66,22 +59,38 @@ def test_a_stop_heard_again_over_the_bridge_voice_is_sent_once_and_a_later_one_a
             assert bridge.flying_ready.wait(120), [e.msg for e in bus.history]
             assert bridge.wait_idle(60)
             assert bridge.submit(Request("go_forward", "key")).done.wait(10)
-            path = StopPath(spotter, bus)
-
-            def say(over_voice: bool) -> None:
-                path.feed(bridge, pcm, over_voice=over_voice)
-                path.end(bridge, time.time())
-
-            say(over_voice=False)            # the pilot's stop
-            _wait_stops(bus, 1)
-            say(over_voice=True)             # its end heard again over the bridge's "braking"
-            assert bridge.submit(Request("go_left", "key")).done.wait(10)
-            say(over_voice=True)             # a new stop over the bridge's "going left"
-            _wait_stops(bus, 2)
+            yield bridge
             bridge.finish()
             runner.join(60)
         finally:
             link.close()
+
+
+def test_a_stop_heard_again_over_the_bridge_voice_is_sent_once_and_a_later_one_again(
+        tmp_path: Path, real_speech_dir: Path) -> None:
+    require_parts("sim_bridge.cli")
+    from gcs_voice.asr.stop_spotter import load_stop_spotter
+    from gcs_voice.audio.sources import read_wav
+    from tools.speech.real_speech import load_recordings
+
+    spotter = load_stop_spotter(["en"])
+    pcm = next(read_wav(r.path) for r in load_recordings(real_speech_dir, split="test")
+               if r.action == "stop" and spotter.spot(read_wav(r.path)).fired
+               and spotter.spot(read_wav(r.path), over_voice=True).fired)
+    bus = EventBus()
+    with _flying_forward(tmp_path, bus) as bridge:
+        path = StopPath(spotter, bus)
+
+        def say(over_voice: bool) -> None:
+            path.feed(bridge, pcm, over_voice=over_voice)
+            path.end(bridge, time.time())
+
+        say(over_voice=False)            # the pilot's stop
+        _wait_stops(bus, 1)
+        say(over_voice=True)             # its end heard again over the bridge's "braking"
+        assert bridge.submit(Request("go_left", "key")).done.wait(10)
+        say(over_voice=True)             # a new stop over the bridge's "going left"
+        _wait_stops(bus, 2)
     spotted = [e for e in bus.history if e.kind == "spotted"]
     assert [bool(e.data.get("repeat")) for e in spotted] == [False, True, False], [e.msg for e in spotted]
     assert _spotter_stops(bus) == 2, [e.msg for e in bus.history]
@@ -102,33 +111,17 @@ def test_a_stop_spotted_while_a_paused_motion_waits_for_its_decision_only_holds_
     pcm = next(read_wav(r.path) for r in load_recordings(real_speech_dir, split="test")
                if r.action == "stop" and spotter.spot(read_wav(r.path)).fired)
     bus = EventBus()
-    with BundledSim(speedup=SPEEDUP, room="open_field", log_path=tmp_path / "sim.log") as sim:
-        link = VehicleLink(sim.connection, load_settings(), tlog_path=tmp_path / "s.tlog")
-        link.open()
-        try:
-            link.wait_vehicle(30)
-            link.request_telemetry()
-            bridge = Bridge(link, ActionMapper(link.settings), bus, 1.5)
-            runner = threading.Thread(target=bridge.run, daemon=True)
-            runner.start()
-            bridge.submit(Request("take_off", "script"))
-            assert bridge.flying_ready.wait(120), [e.msg for e in bus.history]
-            assert bridge.wait_idle(60)
-            assert bridge.submit(Request("go_forward", "key")).done.wait(10)
-            assert bridge.submit(Request(PAUSE, "voice")).done.wait(10)   # an utterance ended: being decided
-            assert bridge.mapper.paused == "go_forward"
-            path = StopPath(spotter, bus)
-            path.provisional = True            # as with a domain ear to settle it
-            path.feed(bridge, pcm)
-            path.end(bridge, time.time())
-            assert path.take_hold()            # a hold waits for the decision ...
-            assert bridge.mapper.paused == "go_forward", [e.msg for e in bus.history]
-            assert bridge.submit(Request(RESUME, "voice")).done.wait(10)  # ... which found no stop
-            assert bridge.mapper.action == "go_forward", [e.msg for e in bus.history]
-            bridge.finish()
-            runner.join(60)
-        finally:
-            link.close()
+    with _flying_forward(tmp_path, bus) as bridge:
+        assert bridge.submit(Request(PAUSE, "voice")).done.wait(10)   # an utterance ended: being decided
+        assert bridge.mapper.paused == "go_forward"
+        path = StopPath(spotter, bus)
+        path.provisional = True            # as with a domain ear to settle it
+        path.feed(bridge, pcm)
+        path.end(bridge, time.time())
+        assert path.take_hold()            # a hold waits for the decision ...
+        assert bridge.mapper.paused == "go_forward", [e.msg for e in bus.history]
+        assert bridge.submit(Request(RESUME, "voice")).done.wait(10)  # ... which found no stop
+        assert bridge.mapper.action == "go_forward", [e.msg for e in bus.history]
     spotted = [e for e in bus.history if e.kind == "spotted"]
     assert [bool(e.data.get("provisional")) for e in spotted] == [True], [e.msg for e in spotted]
     assert _spotter_stops(bus) == 0, [e.msg for e in bus.history]
