@@ -229,11 +229,12 @@ def main(argv: list[str] | None = None) -> int:
         print(line, flush=True)
         lines.append(line)
     spreads = sorted({sp.spread_db for sp in specs})
+    from tools.report import header
+
     report = "\n".join([
-        "# Live listening: continuous streams of real speech over real noise",
+        header("tools.listen.bench_stream", argv).rstrip("\n"),
         "",
-        "Command: `" + " ".join(["python -m tools.listen.bench_stream",
-                                 *(shlex.quote(a) for a in (argv if argv is not None else sys.argv[1:]))]) + "`",
+        "# Live listening: continuous streams of real speech over real noise",
         "",
         "Each stream: real utterances from the "
         + ("held-out test part of `../shared/speech` (the test split of `python -m tools.speech.real_speech`, speakers no "
