@@ -95,24 +95,19 @@ def main(argv: list[str] | None = None) -> int:
     if args.choose and (args.split != "dev" or args.cue_weights):
         parser.error("--choose is on --split dev, without --cue-weights")
     fold_ears: list = []
-    if args.choose:
-        from tools.speech.bench_ear import FOLDS, fold_of
-
+    if args.choose or args.cue_weights:
         clips = train_ear.training_clips(train_ear.SEED, False)
         examples = (train_ear.featurise(clips, train_ear.SEED, False, args.model)
                     + train_ear.featurise(train_ear.over_voice_clips(clips, train_ear.SEED, False), train_ear.SEED,
                                           False, args.model))
-        classes = train_ear.classes_of(examples)
-        fold_ears = [train_ear.train([e for e in examples if e.clip.source != "real" or fold_of(e.clip) != k],
-                                     train_ear.SEED, classes)[0] for k in range(FOLDS)]
+    if args.choose:
+        from tools.speech.bench_ear import fold_of, out_of_fold_ears
+
+        fold_ears = out_of_fold_ears(examples, train_ear.SEED)
         ears = {"over-voice ear, out of fold": fold_ears[0]}
     elif args.cue_weights:
         if args.split != "dev":
             parser.error("--cue-weights are chosen on --split dev only")
-        clips = train_ear.training_clips(train_ear.SEED, False)
-        examples = (train_ear.featurise(clips, train_ear.SEED, False, args.model)
-                    + train_ear.featurise(train_ear.over_voice_clips(clips, train_ear.SEED, False), train_ear.SEED,
-                                          False, args.model))
         ears = {}
         for weight in (float(w) for w in args.cue_weights.split(",")):
             train_ear.CUE_WEIGHT = weight
@@ -134,10 +129,9 @@ def main(argv: list[str] | None = None) -> int:
         pcm = np.clip(np.round(audio * 32768.0), -32768, 32767).astype("<i2").tobytes()
         fired = spotter.spot(pcm, over_voice=True).fired
         x = features(recognizer.model.encode, recognizer.log_mel, audio)
-        if fold_ears:
-            ear = fold_ears[fold_of(clip)] if clip.source == "real" else fold_ears[0]
-            return fired, {name: float(ear.evidence(x)["ear:stop"]) for name in ears}
-        return fired, {name: float(ear.evidence(x)["ear:stop"]) for name, ear in ears.items()}
+        judges = ({name: fold_ears[fold_of(clip)] if clip.source == "real" else fold_ears[0] for name in ears}
+                  if fold_ears else ears)
+        return fired, {name: float(ear.evidence(x)["ear:stop"]) for name, ear in judges.items()}
 
     alone, over = scenes(args.split, args.takes, levels, judge)
     if args.choose:
@@ -186,10 +180,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def choose(alone: list, over: dict[float, list], name: str, write: bool) -> int:
     """The largest OVER_VOICE_STOP that keeps STOP_KEPT of the dev stops the spotter fired on over the bridge."""
-    import re
-
-    from gcs_voice.understanding.thresholds import THRESHOLDS_PATH
-    from tools.speech.bench_ear import STOP_KEPT
+    from tools.speech.bench_ear import STOP_KEPT, write_ear_limits
 
     stops = [p[name] for level in over for fired, p in over[level] if fired]
     cues = [p[name] for _c, (fired, p) in alone if fired]
@@ -202,11 +193,7 @@ def choose(alone: list, over: dict[float, list], name: str, write: bool) -> int:
             chosen = t
     print(f"over_voice_stop {chosen}")
     if write:
-        text = THRESHOLDS_PATH.read_text(encoding="utf-8")
-        text = re.sub(r"(\[ear\.whisper-score\](?:\n[^\[].*)*?\n)over_voice_stop = [^\n]*",
-                      rf"\g<1>over_voice_stop = {chosen}", text)
-        THRESHOLDS_PATH.write_text(text, encoding="utf-8")
-        print(f"wrote over_voice_stop = {chosen} into {THRESHOLDS_PATH}")
+        write_ear_limits({"over_voice_stop": chosen})
     return 0
 
 

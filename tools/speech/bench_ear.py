@@ -182,14 +182,18 @@ def tune(seed: int, write: bool) -> int:
     with tempfile.TemporaryDirectory() as tmp:
         spotted, nearest = spotted_stop(rows, clips, ears, thresholds_with(vouch, veto, Path(tmp), alone))
     if write:
-        text = THRESHOLDS_PATH.read_text(encoding="utf-8")
-        chosen = (("vouch", vouch), ("veto", veto), ("alone", alone), ("spotted_stop", spotted),
-                  ("nearest_stop", nearest))
-        for key, value in chosen:
-            text = re.sub(rf"(\[ear\.whisper-score\](?:\n[^\[].*)*?\n){key} = [^\n]*", rf"\g<1>{key} = {value}", text)
-        THRESHOLDS_PATH.write_text(text, encoding="utf-8")
-        print(f"wrote {', '.join(f'{k} = {v}' for k, v in chosen)} into {THRESHOLDS_PATH}")
+        write_ear_limits({"vouch": vouch, "veto": veto, "alone": alone, "spotted_stop": spotted,
+                          "nearest_stop": nearest})
     return 0
+
+
+def write_ear_limits(values: dict[str, float]) -> None:
+    """Set these keys of ``[ear.whisper-score]`` in thresholds.toml, its comments kept."""
+    text = THRESHOLDS_PATH.read_text(encoding="utf-8")
+    for key, value in values.items():
+        text = re.sub(rf"(\[ear\.whisper-score\](?:\n[^\[].*)*?\n){key} = [^\n]*", rf"\g<1>{key} = {value}", text)
+    THRESHOLDS_PATH.write_text(text, encoding="utf-8")
+    print(f"wrote {', '.join(f'{k} = {v}' for k, v in values.items())} into {THRESHOLDS_PATH}")
 
 
 @dataclass
