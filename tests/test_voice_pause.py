@@ -50,11 +50,11 @@ def test_what_keeps_a_held_motion_stopped_after_speech_not_understood() -> None:
     """The rule of settle_pause, as bench_ear tune chose its limits for it (thresholds.toml [ear.whisper-score])."""
     from gcs_voice.session.listen import stays_stopped
 
-    spotted, nearest = 0.1, 0.02
+    spotted, nearest = 0.3, 0.02
     assert stays_stopped(True, False, 0.0, False, spotted, nearest)          # Whisper wrote "stop"
     assert stays_stopped(False, True, 0.05, False, spotted, nearest)         # ranked a stop first, ear not against
     assert not stays_stopped(False, True, 0.01, False, spotted, nearest)     # ... the ear all but rules it out
-    assert stays_stopped(False, False, 0.3, True, spotted, nearest)          # the spotter held it, the ear agrees
-    assert not stays_stopped(False, False, 0.05, True, spotted, nearest)     # ... the ear gives it too little
+    assert stays_stopped(False, False, 0.4, True, spotted, nearest)          # the spotter held it, the ear agrees
+    assert not stays_stopped(False, False, 0.2, True, spotted, nearest)      # ... the ear gives it too little
     assert not stays_stopped(False, False, 0.9, False, spotted, nearest)     # nothing heard a stop: the ear alone
     assert stays_stopped(False, False, None, True, None, None)               # no ear: a spotted stop stands

@@ -278,7 +278,7 @@ class VoicePipeline:
         stop: Whisper wrote a stop phrase; or its best-scored phrase is one and the domain ear gives "stop" at least
         ``nearest_stop``; or the stop spotter held it and the ear gives "stop" at least ``spotted_stop``. Heard, but
         not surely enough to act on: stopping is safe, but a stop for nothing cancels the pilot's motion, so the
-        thresholds keep 98 % of the dev speakers' stops and no more (``python -m tools.speech.bench_ear tune``).
+        thresholds keep 95 % of the dev speakers' stops and no more (``python -m tools.speech.bench_ear tune``).
 
         Nothing while another utterance waits for its decision (its end paused the vehicle too)."""
         spotted = self.stop_path is not None and not more_waiting and self.stop_path.take_hold()
